@@ -1,0 +1,252 @@
+//! Triangle–conic classification (Sec. 3.3, "Intersection and overlap computations").
+//!
+//! # The arc test
+//! The great-circle arc from a to b meets the cone {q < 0} exactly where the straight segment
+//! from a to b does, because q and the nappe conditions are homogeneous. The paper's symmetric
+//! parametrization p(t) = c + t·d with c = a + b, d = a − b, t ∈ [−1, 1] (p(1) = 2a,
+//! p(−1) = 2b) turns q along the arc into the quadratic
+//!
+//! ```text
+//!   q(p(t)) = dᵀCd·t² + 2·dᵀCc·t + cᵀCc,
+//!   dᵀCd = q(a) + q(b) − 2q(a,b),   dᵀCc = q(a) − q(b),   cᵀCc = q(a) + q(b) + 2q(a,b),
+//! ```
+//!
+//! so three form evaluations per vertex and one bilinear form per edge give every edge's
+//! quadratic. Instead of asking only for a root in [−1, 1], the code restricts t to the part of
+//! the segment on the valid nappe (a linear condition, clipped exactly) and takes the minimum
+//! (or maximum) of the quadratic there: the arc meets the convex cap exactly when that extremum
+//! has the right sign. That is the root test of the paper, restricted to the valid part of the
+//! double cone.
+//!
+//! # The decision (see [`crate::conic`] for the shapes)
+//! - Elliptic, valid set E⁺ convex: all three vertices in E⁺ ⇒ T ⊂ E⁺ (convexity). Otherwise, if
+//!   no edge meets E⁺, then E⁺ (connected) is entirely inside or outside T, decided by whether
+//!   T contains the cap's axis ẑ.
+//! - Hyperbolic, valid set H \ D⁺ with D⁺ ⊂ H: T ∩ (H \ D⁺) = ∅ iff T ⊂ complement(H) or
+//!   T ⊂ D⁺ (the two closed sets are disjoint and T is connected); each is a vertex test by
+//!   convexity. T ⊂ H \ D⁺ iff all vertices are in H, no edge meets D⁺ and the axis ŷ of D⁺ is
+//!   not in T. The valid set always contains a whole half great circle (on m·ω_i = 0, which D⁺
+//!   never reaches) so it is never inside a triangle.
+//! - The surface condition m·n > 0: a triangle whose vertices all have z ≥ 0 lies in the closed
+//!   upper hemisphere and the condition removes only its boundary; otherwise it is never
+//!   "inside", and "disjoint" is decided against the larger set without it (still never wrong).
+//!
+//! # Never wrong
+//! Every sign decision that leads to "disjoint" or "inside" is made with a margin proportional
+//! to a bound on the rounding error of the quantity tested; anything within the margin answers
+//! [`Classification::Partial`].
+
+use glam::DVec3;
+
+use crate::conic::{ConicKind, SphericalConic, scaled_bilinear, scaled_form};
+use crate::triangle::SphericalTriangle;
+
+/// How a spherical triangle relates to the valid set of a spherical conic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Classification {
+    /// No normal of the triangle is in the conic (up to a set of zero area).
+    Disjoint,
+    /// Every normal of the triangle is in the conic (up to a set of zero area).
+    TriangleInsideConic,
+    /// The conic's valid set lies inside the triangle.
+    ConicInsideTriangle,
+    /// Anything else, including every case too close to call.
+    Partial,
+}
+
+/// Relative margin on the quadratic form: far above its rounding error (a few 1e-16 relative
+/// to the bound used), far below any geometry the tree resolves.
+const FORM_MARGIN: f64 = 1e-12;
+/// Relative margin on linear (plane-side) tests.
+const LINEAR_MARGIN: f64 = 1e-13;
+
+/// Absolute margin of the axis-in-triangle test: the axis is within ~1e-14 rad of an edge
+/// plane before it answers "too close to tell".
+const AXIS_MARGIN: f64 = 1e-14;
+
+/// Per-vertex quantities in the conic's standard frame.
+#[derive(Clone, Copy)]
+struct FrameVertex {
+    /// Frame coordinates (x, y, z).
+    f: DVec3,
+    /// q(f), the scaled quadratic form.
+    q: f64,
+    /// |k1||x| + k2|y| + s|z|: bounds |∂q/∂f|/2 and, times |f|₁, |q| and its rounding.
+    form_scale: f64,
+    /// |x| + |y| + |z|.
+    norm1: f64,
+    /// The component along the surface normal n in the local frame.
+    surface_z: f64,
+}
+
+impl FrameVertex {
+    fn new(conic: &SphericalConic, v: DVec3) -> Self {
+        let k = conic.scaled_coefficients();
+        let f = conic.to_frame(v);
+        let a = f.abs();
+        Self {
+            f,
+            q: scaled_form(k, f),
+            form_scale: k.abs().dot(a),
+            norm1: a.x + a.y + a.z,
+            surface_z: v.z,
+        }
+    }
+
+    fn form_margin(&self) -> f64 {
+        FORM_MARGIN * self.form_scale * self.norm1
+    }
+
+    fn linear_margin(&self) -> f64 {
+        LINEAR_MARGIN * self.norm1
+    }
+}
+
+/// The extremum of q along the edge from `a` to `b`, restricted to the part where the linear
+/// function `side` (given at the endpoints as `side_a`, `side_b`) is ≥ −margin. Returns the
+/// minimum (`maximize = false`) or maximum, or `None` when that part is empty.
+fn edge_extremum(
+    a: &FrameVertex,
+    b: &FrameVertex,
+    q_ab: f64,
+    side_a: f64,
+    side_b: f64,
+    side_margin: f64,
+    maximize: bool,
+) -> Option<f64> {
+    // Paper's symmetric form on t ∈ [−1, 1]: p(t) = (a + b) + t(a − b).
+    let sign = if maximize { -1.0 } else { 1.0 };
+    let qa = sign * a.q;
+    let qb = sign * b.q;
+    let q_ab = sign * q_ab;
+    let quadratic = qa + qb - 2.0 * q_ab; // dᵀCd
+    let half_linear = qa - qb; // dᵀCc
+    let constant = qa + qb + 2.0 * q_ab; // cᵀCc
+    // side(p(t)) = (side_a + side_b) + t(side_a − side_b) ≥ −margin.
+    let (mut lo, mut hi) = (-1.0_f64, 1.0_f64);
+    let side_constant = side_a + side_b + side_margin;
+    let side_slope = side_a - side_b;
+    if side_slope > 0.0 {
+        lo = lo.max(-side_constant / side_slope);
+    } else if side_slope < 0.0 {
+        hi = hi.min(-side_constant / side_slope);
+    } else if side_constant < 0.0 {
+        return None;
+    }
+    if !(lo <= hi) {
+        return None;
+    }
+    let at = |t: f64| (quadratic * t + 2.0 * half_linear) * t + constant;
+    let mut extremum = at(lo).min(at(hi));
+    if quadratic > 0.0 {
+        let vertex = -half_linear / quadratic;
+        if vertex > lo && vertex < hi {
+            extremum = extremum.min(at(vertex));
+        }
+    }
+    Some(sign * extremum)
+}
+
+/// Where `axis` lies relative to the triangle with vertices in frame coordinates: `Some(true)`
+/// strictly inside, `Some(false)` strictly outside, `None` too close to an edge to tell.
+fn axis_in_triangle(v: &[FrameVertex; 3], axis: usize) -> Option<bool> {
+    let mut inside = true;
+    for i in 0..3 {
+        let (p, q) = (v[i].f, v[(i + 1) % 3].f);
+        // Component `axis` of p × (q − p), the inward edge normal.
+        let d = q - p;
+        let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+        let side = p[u] * d[w] - p[w] * d[u];
+        // Frame coordinates carry an absolute rounding error below 1e-15 (unit inputs), which
+        // the absolute term covers; the relative term covers the products.
+        let margin =
+            LINEAR_MARGIN * (p[u].abs() * d[w].abs() + p[w].abs() * d[u].abs()) + AXIS_MARGIN;
+        if side < -margin {
+            return Some(false);
+        }
+        if side <= margin {
+            inside = false;
+        }
+    }
+    inside.then_some(true)
+}
+
+impl SphericalConic {
+    /// Classifies `triangle` against this conic's valid set (see the module docs). The answers
+    /// [`Classification::Disjoint`], [`Classification::TriangleInsideConic`] and
+    /// [`Classification::ConicInsideTriangle`] are never wrong; any doubt gives
+    /// [`Classification::Partial`]. No trigonometry, no allocation.
+    #[must_use]
+    pub fn classify(&self, triangle: &SphericalTriangle) -> Classification {
+        let [a, b, c] = triangle.vertices();
+        let v = [
+            FrameVertex::new(self, a),
+            FrameVertex::new(self, b),
+            FrameVertex::new(self, c),
+        ];
+        let k = self.scaled_coefficients();
+        let q_edge = [
+            scaled_bilinear(k, v[0].f, v[1].f),
+            scaled_bilinear(k, v[1].f, v[2].f),
+            scaled_bilinear(k, v[2].f, v[0].f),
+        ];
+        let edge_margin = |i: usize, j: usize| {
+            4.0 * FORM_MARGIN * (v[i].form_scale + v[j].form_scale) * (v[i].norm1 + v[j].norm1)
+        };
+        let in_upper_hemisphere = v.iter().all(|x| x.surface_z >= 0.0);
+        match self.kind() {
+            ConicKind::Elliptic => {
+                // E⁺ = {q < 0, z > 0}: convex.
+                if in_upper_hemisphere
+                    && v.iter()
+                        .all(|x| x.q < -x.form_margin() && x.f.z > x.linear_margin())
+                {
+                    return Classification::TriangleInsideConic;
+                }
+                let edge_meets_cap = |i: usize| {
+                    let (p, r) = (&v[i], &v[(i + 1) % 3]);
+                    let side_margin = p.linear_margin() + r.linear_margin();
+                    edge_extremum(p, r, q_edge[i], p.f.z, r.f.z, side_margin, false)
+                        .is_some_and(|min_q| min_q < edge_margin(i, (i + 1) % 3))
+                };
+                if (0..3).any(edge_meets_cap) {
+                    return Classification::Partial;
+                }
+                match axis_in_triangle(&v, 2) {
+                    Some(true) => Classification::ConicInsideTriangle,
+                    Some(false) => Classification::Disjoint,
+                    None => Classification::Partial,
+                }
+            }
+            ConicKind::Hyperbolic => {
+                // Valid set H \ D⁺, H = {m·ω_i > 0}, D⁺ = {q ≥ 0, y ≥ 0} ⊂ H.
+                let (cos_half, sin_half) = self.half_angle_cos_sin();
+                let facing = v.map(|x| cos_half * x.f.z + sin_half * x.f.y);
+                if (0..3).all(|i| facing[i] < -v[i].linear_margin()) {
+                    return Classification::Disjoint;
+                }
+                if v.iter()
+                    .all(|x| x.q > x.form_margin() && x.f.y > x.linear_margin())
+                {
+                    return Classification::Disjoint;
+                }
+                if !in_upper_hemisphere || (0..3).any(|i| facing[i] <= v[i].linear_margin()) {
+                    return Classification::Partial;
+                }
+                let edge_meets_cap = |i: usize| {
+                    let (p, r) = (&v[i], &v[(i + 1) % 3]);
+                    let side_margin = p.linear_margin() + r.linear_margin();
+                    edge_extremum(p, r, q_edge[i], p.f.y, r.f.y, side_margin, true)
+                        .is_some_and(|max_q| max_q > -edge_margin(i, (i + 1) % 3))
+                };
+                if (0..3).any(edge_meets_cap) {
+                    return Classification::Partial;
+                }
+                match axis_in_triangle(&v, 1) {
+                    Some(false) => Classification::TriangleInsideConic,
+                    _ => Classification::Partial,
+                }
+            }
+        }
+    }
+}

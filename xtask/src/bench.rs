@@ -1,0 +1,101 @@
+//! `cargo xtask bench`: run the criterion benchmarks, then collect their medians into one table.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, bail};
+
+/// The benchmarks the summary reports, with what each measures.
+const BENCHMARKS: [(&str, &str); 7] = [
+    (
+        "conic_new",
+        "SphericalConic::new (frame, λ1, λ2; one sin/cos)",
+    ),
+    ("contains", "SphericalConic::contains (one direction)"),
+    (
+        "classify_tree",
+        "classify: count-tree triangles (octant depth 2–8)",
+    ),
+    ("classify_mixed", "classify: random cases incl. extremes"),
+    ("solid_angle", "SphericalTriangle::solid_angle"),
+    (
+        "overlap_planar",
+        "overlap, planar approximation (partial tree cases)",
+    ),
+    (
+        "overlap_precise",
+        "overlap, precise reference (partial tree cases)",
+    ),
+];
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask lives in the workspace")
+        .to_path_buf()
+}
+
+pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
+    let root = workspace_root();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let mut command = Command::new(cargo);
+    command
+        .current_dir(&root)
+        .args(["bench", "-p", "glint-benches", "--bench", "sphere", "--"]);
+    if quick {
+        command.args(["--warm-up-time", "1", "--measurement-time", "2"]);
+    }
+    let status = command.status().context("running cargo bench")?;
+    if !status.success() {
+        bail!("cargo bench failed: {status}");
+    }
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
+    let mut table = String::from("| benchmark | what | median per call |\n|---|---|---|\n");
+    for (name, what) in BENCHMARKS {
+        let path = target
+            .join("criterion/sphere")
+            .join(name)
+            .join("new/estimates.json");
+        let json = std::fs::read_to_string(&path)
+            .with_context(|| format!("reading {}", path.display()))?;
+        let median_ns = median_point_estimate(&json)
+            .with_context(|| format!("no median in {}", path.display()))?;
+        writeln!(table, "| sphere/{name} | {what} | {median_ns:.1} ns |")?;
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let path = out.join("summary.md");
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let header = format!(
+        "# glint benchmarks\n\nOne core, criterion medians ({} measurement); machine: {threads} \
+         hardware threads.\n\n",
+        if quick { "quick" } else { "full" }
+    );
+    std::fs::write(&path, header + &table)
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("\n{table}\nsummary: {}", path.display());
+    Ok(())
+}
+
+/// The `point_estimate` of the `median` object in criterion's `estimates.json` (nanoseconds).
+fn median_point_estimate(json: &str) -> Option<f64> {
+    let median = &json[json.find("\"median\"")?..];
+    let field = &median[median.find("\"point_estimate\"")? + "\"point_estimate\"".len()..];
+    let value = field.trim_start().strip_prefix(':')?.trim_start();
+    let end =
+        value.find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '-' | '+')))?;
+    value[..end].parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_criterion_median() {
+        let json = r#"{"mean":{"confidence_interval":{"confidence_level":0.95,"lower_bound":1.0,"upper_bound":2.0},"point_estimate":1.5,"standard_error":0.1},"median":{"confidence_interval":{"confidence_level":0.95,"lower_bound":40.0,"upper_bound":41.0},"point_estimate":40.27,"standard_error":0.2}}"#;
+        assert_eq!(median_point_estimate(json), Some(40.27));
+        assert_eq!(median_point_estimate("{}"), None);
+    }
+}

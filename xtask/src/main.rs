@@ -1,0 +1,51 @@
+//! `cargo xtask`: the project's long-running commands.
+//!
+//! - `cargo xtask validate [--quick]`: the validation suites, written as a Markdown report under
+//!   `target/validate/`; exits non-zero when any check fails.
+//! - `cargo xtask bench [--quick]`: runs the criterion benchmarks and writes the per-call table
+//!   that the README quotes to `target/bench/summary.md`.
+
+mod bench;
+mod validate;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "cargo xtask",
+    about = "glint's validation and benchmark commands"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Check the model against its definitions by brute force; exit non-zero on any failure.
+    Validate {
+        /// Smaller sample sizes (under three minutes; part of CI).
+        #[arg(long)]
+        quick: bool,
+        /// Where to write the report (default: target/validate).
+        #[arg(long, default_value = "target/validate")]
+        out: std::path::PathBuf,
+    },
+    /// Run the criterion benchmarks and write the summary table.
+    Bench {
+        /// Shorter measurement times (noisier figures).
+        #[arg(long)]
+        quick: bool,
+        /// Where to write the summary (default: target/bench).
+        #[arg(long, default_value = "target/bench")]
+        out: std::path::PathBuf,
+    },
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Validate { quick, out } => validate::run(quick, &out),
+        Command::Bench { quick, out } => bench::run(quick, &out),
+    }
+}
