@@ -10,6 +10,7 @@
 //! strategies and the deterministic [`SplitMix64`] stream share one generator.
 #![deny(missing_docs)]
 
+pub mod counts;
 pub mod geometry;
 
 /// SplitMix64 (Steele, Lea and Flood 2014): a tiny, seedable generator of uniform numbers for

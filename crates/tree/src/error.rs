@@ -1,0 +1,70 @@
+//! The error type of glint-tree.
+
+use std::fmt;
+
+/// Why a count tree or a query could not be built from the given parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TreeError {
+    /// The particle count N must be an integer in [1, 2⁵³].
+    ParticleCountOutOfRange {
+        /// The rejected value.
+        particles: u64,
+    },
+    /// ε (Eq. 10) must be finite and ≥ 0.
+    InvalidEpsilon {
+        /// The rejected value.
+        epsilon: f64,
+    },
+    /// The expected query area and solid angle (Eq. 11) must be finite and > 0.
+    InvalidExpectedQuery,
+    /// The quadrature tolerances δ_abs, δ_rel must be finite and ≥ 0.
+    InvalidTolerance,
+    /// The normal density was negative or not finite somewhere, or integrates to zero.
+    InvalidDensity,
+    /// A footprint had a NaN or infinite component.
+    NonFiniteFootprint,
+    /// Colour channels for particle areas must be 0 (none) to 3.
+    InvalidColourChannels {
+        /// The rejected value.
+        channels: usize,
+    },
+    /// TEA needs at least one cycle.
+    InvalidRounds,
+}
+
+impl fmt::Display for TreeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::ParticleCountOutOfRange { particles } => {
+                write!(
+                    f,
+                    "particle count {particles} is out of range: it must be in [1, 2^53]"
+                )
+            }
+            Self::InvalidEpsilon { epsilon } => {
+                write!(
+                    f,
+                    "epsilon = {epsilon} is invalid: it must be finite and >= 0"
+                )
+            }
+            Self::InvalidExpectedQuery => write!(
+                f,
+                "expected query area and solid angle must be finite and > 0"
+            ),
+            Self::InvalidTolerance => {
+                write!(f, "quadrature tolerances must be finite and >= 0")
+            }
+            Self::InvalidDensity => write!(
+                f,
+                "the normal density is negative or not finite somewhere, or integrates to zero"
+            ),
+            Self::NonFiniteFootprint => write!(f, "footprint has a NaN or infinite component"),
+            Self::InvalidColourChannels { channels } => {
+                write!(f, "{channels} colour channels requested: use 0 (none) to 3")
+            }
+            Self::InvalidRounds => write!(f, "TEA needs at least one round"),
+        }
+    }
+}
+
+impl std::error::Error for TreeError {}

@@ -1,0 +1,388 @@
+//! Texture-space footprints and their overlap with the tree's boxes, across texture tiles.
+//!
+//! A [`Footprint`] is the parallelogram {c + s·dx + t·dy : s, t ∈ [−½, ½]} that ray
+//! differentials give for a pixel (Sec. 3.1, "Usage in a rendering system"). The particles live
+//! in the unit texture square and the texture repeats, so a particle at x is seen once for every
+//! integer translate x + (i, j) inside the parallelogram: its *multiplicity* m(x). A box of the
+//! tree is resolved when m is constant on it, partial otherwise.
+//!
+//! Per box the work is one O(1) step per texture row the footprint spans: in row j the box's
+//! translates inside the footprint form an integer interval (the box lies inside the convex
+//! footprint iff its four corners do), and the translates that touch it form another (the box
+//! meets the footprint iff their x-ranges overlap within the row's band). So a footprint over
+//! many tiles costs O(√tiles) per box, not O(tiles).
+
+use glam::{DMat2, DVec2};
+
+use crate::error::TreeError;
+
+/// A texture-space parallelogram (ray-differential footprint).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Footprint {
+    /// The centre, reduced to [0, 1)² (the texture is periodic).
+    center: DVec2,
+    dx: DVec2,
+    dy: DVec2,
+    /// Maps x − centre to (s, t).
+    to_parameters: DMat2,
+    area: f64,
+    /// The four corners, counter-clockwise or clockwise.
+    corners: [DVec2; 4],
+    /// Axis-aligned bounds of the corners.
+    min: DVec2,
+    max: DVec2,
+}
+
+/// How a box of the tree meets a footprint's translates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoxOverlap {
+    /// Translates containing the whole box: the box's particles are each seen this many times.
+    pub inside: u64,
+    /// Translates that cut the box (0 when the box is resolved).
+    pub partial: u64,
+}
+
+impl Footprint {
+    /// The parallelogram centred at `uv` with edge vectors `duv_dx`, `duv_dy`.
+    ///
+    /// # Errors
+    /// [`TreeError::NonFiniteFootprint`] if any component is NaN or infinite.
+    pub fn new(uv: DVec2, duv_dx: DVec2, duv_dy: DVec2) -> Result<Self, TreeError> {
+        if !(uv.is_finite() && duv_dx.is_finite() && duv_dy.is_finite()) {
+            return Err(TreeError::NonFiniteFootprint);
+        }
+        let center = uv - uv.floor();
+        let determinant = duv_dx.perp_dot(duv_dy);
+        let to_parameters = if determinant != 0.0 {
+            DMat2::from_cols(duv_dx, duv_dy).inverse()
+        } else {
+            DMat2::ZERO
+        };
+        let corners = [
+            center - 0.5 * duv_dx - 0.5 * duv_dy,
+            center + 0.5 * duv_dx - 0.5 * duv_dy,
+            center + 0.5 * duv_dx + 0.5 * duv_dy,
+            center - 0.5 * duv_dx + 0.5 * duv_dy,
+        ];
+        let min = corners.iter().fold(DVec2::INFINITY, |m, c| m.min(*c));
+        let max = corners.iter().fold(DVec2::NEG_INFINITY, |m, c| m.max(*c));
+        Ok(Self {
+            center,
+            dx: duv_dx,
+            dy: duv_dy,
+            to_parameters,
+            area: determinant.abs(),
+            corners,
+            min,
+            max,
+        })
+    }
+
+    /// The area in texture units (tiles).
+    #[must_use]
+    pub fn area(&self) -> f64 {
+        self.area
+    }
+
+    /// Whether the parallelogram has no area (a degenerate footprint sees no particles).
+    #[must_use]
+    pub fn is_degenerate(&self) -> bool {
+        !(self.area > 0.0) || !self.to_parameters.is_finite()
+    }
+
+    /// The centre in [0, 1)².
+    #[must_use]
+    pub fn center(&self) -> DVec2 {
+        self.center
+    }
+
+    /// The edge vectors (dx, dy).
+    #[must_use]
+    pub fn edges(&self) -> (DVec2, DVec2) {
+        (self.dx, self.dy)
+    }
+
+    /// Whether texture point `x` (unwrapped) lies in the parallelogram.
+    #[inline]
+    #[must_use]
+    pub fn contains(&self, x: DVec2) -> bool {
+        let st = self.to_parameters * (x - self.center);
+        st.x.abs() <= 0.5 && st.y.abs() <= 0.5
+    }
+
+    /// The x-interval where the horizontal line at height `y` meets the parallelogram.
+    fn row(&self, y: f64) -> Option<(f64, f64)> {
+        let m = &self.to_parameters;
+        let dy = y - self.center.y;
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        // s = m00·(x − cx) + m01·dy and t = m10·(x − cx) + m11·dy, each in [−½, ½].
+        for (slope, offset) in [(m.x_axis.x, m.y_axis.x * dy), (m.x_axis.y, m.y_axis.y * dy)] {
+            if slope == 0.0 {
+                if offset.abs() > 0.5 {
+                    return None;
+                }
+                continue;
+            }
+            let a = (-0.5 - offset) / slope;
+            let b = (0.5 - offset) / slope;
+            lo = lo.max(a.min(b));
+            hi = hi.min(a.max(b));
+        }
+        (lo <= hi).then_some((lo + self.center.x, hi + self.center.x))
+    }
+
+    /// The x-extent of the parallelogram within the band y ∈ [y0, y1].
+    fn band(&self, y0: f64, y1: f64) -> Option<(f64, f64)> {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for y in [y0, y1] {
+            if let Some((a, b)) = self.row(y) {
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+        }
+        for c in &self.corners {
+            if c.y >= y0 && c.y <= y1 {
+                lo = lo.min(c.x);
+                hi = hi.max(c.x);
+            }
+        }
+        (lo <= hi).then_some((lo, hi))
+    }
+
+    /// The integer rows j whose translate of [y0, y1] meets the footprint's y-range.
+    fn rows_for(&self, y0: f64, y1: f64) -> std::ops::RangeInclusive<i64> {
+        let first = (self.min.y - y1).ceil() as i64;
+        let last = (self.max.y - y0).floor() as i64;
+        first..=last
+    }
+
+    /// How the box [min, min + size]² meets the footprint's integer translates.
+    #[must_use]
+    pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {
+        let max = min + DVec2::splat(size);
+        let (mut inside, mut touching) = (0u64, 0u64);
+        for j in self.rows_for(min.y, max.y) {
+            let (y0, y1) = (min.y + j as f64, max.y + j as f64);
+            let Some((band_lo, band_hi)) = self.band(y0, y1) else {
+                continue;
+            };
+            // Translates i with [min.x + i, max.x + i] overlapping [band_lo, band_hi].
+            let first = (band_lo - max.x).ceil() as i64;
+            let last = (band_hi - min.x).floor() as i64;
+            if last < first {
+                continue;
+            }
+            touching += (last - first + 1) as u64;
+            if let (Some((a0, b0)), Some((a1, b1))) = (self.row(y0), self.row(y1)) {
+                let first_in = (a0.max(a1) - min.x).ceil() as i64;
+                let last_in = (b0.min(b1) - max.x).floor() as i64;
+                if last_in >= first_in {
+                    inside += (last_in - first_in + 1) as u64;
+                }
+            }
+        }
+        BoxOverlap {
+            inside,
+            partial: touching.saturating_sub(inside),
+        }
+    }
+
+    /// The number of integer translates x + (i, j) inside the footprint: the multiplicity m(x).
+    #[must_use]
+    pub fn multiplicity(&self, x: DVec2) -> u64 {
+        let mut count = 0u64;
+        for j in self.rows_for(x.y, x.y) {
+            if let Some((a, b)) = self.row(x.y + j as f64) {
+                let first = (a - x.x).ceil() as i64;
+                let last = (b - x.x).floor() as i64;
+                if last >= first {
+                    count += (last - first + 1) as u64;
+                }
+            }
+        }
+        count
+    }
+
+    /// ∫ over the box of m(x) dx: the summed area of the box's overlaps with all translates.
+    /// Translates containing the box add its area; the O(perimeter) others are clipped
+    /// (Sutherland–Hodgman, box by parallelogram).
+    #[must_use]
+    pub fn overlap_area(&self, min: DVec2, size: f64) -> f64 {
+        let max = min + DVec2::splat(size);
+        let mut area = 0.0;
+        for j in self.rows_for(min.y, max.y) {
+            let (y0, y1) = (min.y + j as f64, max.y + j as f64);
+            let Some((band_lo, band_hi)) = self.band(y0, y1) else {
+                continue;
+            };
+            let first = (band_lo - max.x).ceil() as i64;
+            let last = (band_hi - min.x).floor() as i64;
+            let (first_in, last_in) = match (self.row(y0), self.row(y1)) {
+                (Some((a0, b0)), Some((a1, b1))) => (
+                    (a0.max(a1) - min.x).ceil() as i64,
+                    (b0.min(b1) - max.x).floor() as i64,
+                ),
+                _ => (1, 0),
+            };
+            if last_in >= first_in {
+                area += (last_in - first_in + 1) as f64 * size * size;
+            }
+            for i in first..=last {
+                if i >= first_in && i <= last_in {
+                    continue;
+                }
+                let offset = DVec2::new(i as f64, j as f64);
+                area += self.clipped_area(min + offset, max + offset);
+            }
+        }
+        area
+    }
+
+    /// The area of box [lo, hi] ∩ parallelogram.
+    fn clipped_area(&self, lo: DVec2, hi: DVec2) -> f64 {
+        let mut polygon = [DVec2::ZERO; 8];
+        polygon[..4].copy_from_slice(&[lo, DVec2::new(hi.x, lo.y), hi, DVec2::new(lo.x, hi.y)]);
+        let mut len = 4;
+        let m = &self.to_parameters;
+        // The four half-planes ±s ≤ ½, ±t ≤ ½.
+        let rows = [m.row(0), m.row(1)];
+        for row in rows {
+            for sign in [1.0, -1.0] {
+                let value = |p: DVec2| 0.5 - sign * row.dot(p - self.center);
+                let mut out = [DVec2::ZERO; 8];
+                let mut out_len = 0;
+                for k in 0..len {
+                    let (p, q) = (polygon[k], polygon[(k + 1) % len]);
+                    let (vp, vq) = (value(p), value(q));
+                    if vp >= 0.0 {
+                        out[out_len] = p;
+                        out_len += 1;
+                    }
+                    if (vp >= 0.0) != (vq >= 0.0) {
+                        out[out_len] = p + (vp / (vp - vq)) * (q - p);
+                        out_len += 1;
+                    }
+                }
+                polygon = out;
+                len = out_len;
+                if len == 0 {
+                    return 0.0;
+                }
+            }
+        }
+        let mut twice_area = 0.0;
+        for k in 0..len {
+            twice_area += polygon[k].perp_dot(polygon[(k + 1) % len]);
+        }
+        0.5 * twice_area.abs()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn brute_multiplicity(f: &Footprint, x: DVec2) -> u64 {
+        let mut count = 0;
+        for j in -40..=40 {
+            for i in -40..=40 {
+                if f.contains(x + DVec2::new(f64::from(i), f64::from(j))) {
+                    count += 1;
+                }
+            }
+        }
+        count
+    }
+
+    #[test]
+    fn multiplicity_matches_brute_force() {
+        let footprints = [
+            Footprint::new(
+                DVec2::new(0.3, 0.4),
+                DVec2::new(0.01, 0.002),
+                DVec2::new(-0.003, 0.02),
+            )
+            .unwrap(),
+            Footprint::new(
+                DVec2::new(0.99, 0.01),
+                DVec2::new(0.3, 0.1),
+                DVec2::new(0.05, 0.4),
+            )
+            .unwrap(),
+            Footprint::new(
+                DVec2::new(5.5, -3.2),
+                DVec2::new(7.3, 2.1),
+                DVec2::new(-1.7, 6.2),
+            )
+            .unwrap(),
+        ];
+        let mut state = 1u64;
+        let mut uniform = || {
+            state = crate::node::mix64(state.wrapping_add(0x9E37_79B9_7F4A_7C15));
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for f in &footprints {
+            for _ in 0..2000 {
+                let x = DVec2::new(uniform(), uniform());
+                assert_eq!(f.multiplicity(x), brute_multiplicity(f, x), "{f:?} {x}");
+            }
+        }
+    }
+
+    #[test]
+    fn box_overlap_brackets_the_multiplicity() {
+        let f = Footprint::new(
+            DVec2::new(0.2, 0.7),
+            DVec2::new(2.3, 0.4),
+            DVec2::new(-0.6, 1.9),
+        )
+        .unwrap();
+        for level in 0..6 {
+            let size = 0.5_f64.powi(level);
+            let cells = 1 << level;
+            for cy in 0..cells {
+                for cx in 0..cells {
+                    let min = DVec2::new(f64::from(cx), f64::from(cy)) * size;
+                    let overlap = f.overlap_box(min, size);
+                    for (sx, sy) in [(0.1, 0.1), (0.9, 0.2), (0.5, 0.5), (0.2, 0.95)] {
+                        let m = f.multiplicity(min + DVec2::new(sx, sy) * size);
+                        assert!(m >= overlap.inside && m <= overlap.inside + overlap.partial);
+                    }
+                    let area = f.overlap_area(min, size);
+                    let box_area = size * size;
+                    assert!(area >= overlap.inside as f64 * box_area * (1.0 - 1e-12));
+                    assert!(
+                        area <= (overlap.inside + overlap.partial) as f64
+                            * box_area
+                            * (1.0 + 1e-12)
+                    );
+                    if overlap.partial == 0 {
+                        assert!((area - overlap.inside as f64 * box_area).abs() < 1e-12);
+                    }
+                }
+            }
+        }
+        // Over the whole tile, ∫ m = the footprint's area.
+        assert!((f.overlap_area(DVec2::ZERO, 1.0) - f.area()).abs() < 1e-12 * f.area());
+    }
+
+    #[test]
+    fn degenerate_and_invalid_footprints() {
+        let zero = Footprint::new(
+            DVec2::new(0.5, 0.5),
+            DVec2::new(0.1, 0.0),
+            DVec2::new(0.2, 0.0),
+        )
+        .unwrap();
+        assert!(zero.is_degenerate());
+        assert!(Footprint::new(DVec2::new(f64::NAN, 0.5), DVec2::X, DVec2::Y).is_err());
+        let far = Footprint::new(
+            DVec2::new(1e6 + 0.25, -1e6 + 0.5),
+            DVec2::new(1e-3, 0.0),
+            DVec2::new(0.0, 1e-3),
+        )
+        .unwrap();
+        assert!((far.center() - DVec2::new(0.25, 0.5)).length() < 1e-9);
+    }
+}

@@ -1,0 +1,255 @@
+//! Memoized quadrature of the particle normal density over the directional hierarchy (Alg. 2).
+//!
+//! The probabilities of a directional split are the integrals of p(m) = D(m)(m·n) over the four
+//! child triangles, renormalized to sum to one (Sec. 3.4). Before rendering, Alg. 2 integrates p
+//! over the four octants, comparing a midpoint rule (Ω·p(centre)) with a corner rule
+//! (Ω/3·Σ p(vertex)); where they disagree by more than δ_abs, and relatively by more than δ_rel,
+//! it recurses into the four children and stores the sum in a table. At query time a triangle
+//! with a table entry uses it; any other triangle is one where p is close to uniform, and the
+//! one-point rule Ω·p(centre) serves. The same "no entry" condition gates the error criterion
+//! (Eq. 10) of the traversal.
+//!
+//! Directional cells are identified by the paper's labels restricted to directional splits:
+//! the hemisphere is 1, octant j (0-based) is 3 + j, child j of cell i is 4i + j − 1.
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use glint_sphere::SphericalTriangle;
+
+use crate::error::TreeError;
+
+/// The particle normal density p(m) = D(m)(m·n) over the upper hemisphere, as a function of a
+/// unit normal in the local frame. It integrates to 1 over the hemisphere. The tree evaluates it
+/// only where m·n > 0 and takes p = 0 on the horizon (where m·n = 0).
+pub type NormalDensity = dyn Fn(DVec3) -> f64 + Send + Sync;
+
+/// A directional cell: the hemisphere (the root) or a spherical triangle of the hierarchy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectionalCell {
+    /// `None` for the whole upper hemisphere.
+    pub triangle: Option<SphericalTriangle>,
+    /// The directional label (see the module docs).
+    pub label: u64,
+    /// Directional splits from the hemisphere.
+    pub depth: u32,
+}
+
+impl DirectionalCell {
+    /// The upper hemisphere.
+    pub const HEMISPHERE: Self = Self {
+        triangle: None,
+        label: 1,
+        depth: 0,
+    };
+
+    /// Labels stay exact in 64 bits to this depth.
+    pub const MAX_LABELLED_DEPTH: u32 = 30;
+
+    /// The four children: the octants of the hemisphere, or the triangle's subdivision.
+    #[must_use]
+    pub fn children(&self) -> [Self; 4] {
+        let triangles = match &self.triangle {
+            None => SphericalTriangle::upper_hemisphere_octants(),
+            Some(t) => t.subdivide(),
+        };
+        let label = |j: usize| {
+            if self.depth < Self::MAX_LABELLED_DEPTH {
+                4 * self.label + j as u64 - 1
+            } else {
+                // Beyond the memo's reach labels are never looked up; keep them saturated.
+                u64::MAX
+            }
+        };
+        [0, 1, 2, 3].map(|j| Self {
+            triangle: Some(triangles[j]),
+            label: label(j),
+            depth: self.depth + 1,
+        })
+    }
+
+    /// The solid angle: 2π for the hemisphere.
+    #[must_use]
+    pub fn solid_angle(&self) -> f64 {
+        self.triangle
+            .map_or(2.0 * std::f64::consts::PI, |t| t.solid_angle())
+    }
+}
+
+/// The tolerances of Alg. 2 (defaults: δ_abs = δ_rel = 1e-5, the paper's).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QuadratureTolerance {
+    /// δ_abs: accept a triangle when |rule1 − rule2| < δ_abs.
+    pub absolute: f64,
+    /// δ_rel: accept a triangle when |rule1 − rule2| / rule2 < δ_rel.
+    pub relative: f64,
+    /// Deepest directional level that may receive a table entry.
+    pub max_depth: u32,
+}
+
+impl Default for QuadratureTolerance {
+    fn default() -> Self {
+        Self {
+            absolute: 1e-5,
+            relative: 1e-5,
+            max_depth: 18,
+        }
+    }
+}
+
+/// A hasher for the table's keys, which are already well-spread labels after one mix.
+#[derive(Default)]
+pub(crate) struct LabelHasher(u64);
+
+impl Hasher for LabelHasher {
+    fn finish(&self) -> u64 {
+        crate::node::mix64(self.0)
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 << 8 | u64::from(b)).rotate_left(5);
+        }
+    }
+
+    fn write_u64(&mut self, value: u64) {
+        self.0 = value;
+    }
+}
+
+/// The memo table of Alg. 2 for one density.
+#[derive(Clone, Debug)]
+pub struct NdfQuadrature {
+    table: HashMap<u64, f64, BuildHasherDefault<LabelHasher>>,
+    tolerance: QuadratureTolerance,
+    build_time: Duration,
+    hemisphere_integral: f64,
+}
+
+impl NdfQuadrature {
+    /// Runs Alg. 2 on the four octants of the upper hemisphere.
+    ///
+    /// # Errors
+    /// [`TreeError::InvalidTolerance`] for negative or non-finite tolerances;
+    /// [`TreeError::InvalidDensity`] if the density is negative or not finite at a quadrature
+    /// point, or integrates to zero.
+    pub fn build(
+        density: &NormalDensity,
+        tolerance: QuadratureTolerance,
+    ) -> Result<Self, TreeError> {
+        let valid = |x: f64| x >= 0.0 && x.is_finite();
+        if !(valid(tolerance.absolute) && valid(tolerance.relative)) {
+            return Err(TreeError::InvalidTolerance);
+        }
+        let started = Instant::now();
+        let mut quadrature = Self {
+            table: HashMap::default(),
+            tolerance,
+            build_time: Duration::ZERO,
+            hemisphere_integral: 0.0,
+        };
+        let mut total = 0.0;
+        for octant in DirectionalCell::HEMISPHERE.children() {
+            total += quadrature.integrate(&octant, density)?;
+        }
+        if !(total > 0.0 && total.is_finite()) {
+            return Err(TreeError::InvalidDensity);
+        }
+        quadrature.hemisphere_integral = total;
+        quadrature.build_time = started.elapsed();
+        Ok(quadrature)
+    }
+
+    /// Alg. 2 for one cell: the corner rule where it agrees with the midpoint rule, else the
+    /// sum over the children, memoized.
+    fn integrate(
+        &mut self,
+        cell: &DirectionalCell,
+        density: &NormalDensity,
+    ) -> Result<f64, TreeError> {
+        let triangle = cell.triangle.expect("Alg. 2 runs below the hemisphere");
+        let area = triangle.solid_angle();
+        let evaluate = |m: DVec3| {
+            let value = if m.z > 0.0 { density(m) } else { 0.0 };
+            if value >= 0.0 && value.is_finite() {
+                Ok(value)
+            } else {
+                Err(TreeError::InvalidDensity)
+            }
+        };
+        let [a, b, c] = triangle.vertices();
+        let midpoint_rule = area * evaluate(triangle.centroid())?;
+        let corner_rule = area / 3.0 * (evaluate(a)? + evaluate(b)? + evaluate(c)?);
+        let difference = (midpoint_rule - corner_rule).abs();
+        let accepted = difference < self.tolerance.absolute
+            || difference < self.tolerance.relative * corner_rule
+            || cell.depth >= self.tolerance.max_depth;
+        if accepted {
+            return Ok(corner_rule);
+        }
+        let mut sum = 0.0;
+        for child in cell.children() {
+            sum += self.integrate(&child, density)?;
+        }
+        self.table.insert(cell.label, sum);
+        Ok(sum)
+    }
+
+    /// Whether `cell` has a table entry: p is not close to uniform on it, so the traversal may
+    /// not stop early there (Eq. 10) and its integral comes from the table.
+    #[inline]
+    #[must_use]
+    pub fn has_entry(&self, cell: &DirectionalCell) -> bool {
+        cell.triangle.is_none()
+            || (cell.depth <= self.tolerance.max_depth && self.table.contains_key(&cell.label))
+    }
+
+    /// ∫ p over `cell`: the table entry if there is one, else the one-point rule Ω·p(centre).
+    #[inline]
+    #[must_use]
+    pub fn integral(&self, cell: &DirectionalCell, density: &NormalDensity) -> f64 {
+        match &cell.triangle {
+            None => self.hemisphere_integral,
+            Some(triangle) => {
+                if cell.depth <= self.tolerance.max_depth
+                    && let Some(&value) = self.table.get(&cell.label)
+                {
+                    return value;
+                }
+                triangle.solid_angle() * density(triangle.centroid())
+            }
+        }
+    }
+
+    /// The number of table entries (the paper reports 500–1000 for its scenes).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.table.len()
+    }
+
+    /// Whether the table is empty (p close to uniform on every octant).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.table.is_empty()
+    }
+
+    /// The time `build` took.
+    #[must_use]
+    pub fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    /// ∫ p over the hemisphere by this quadrature (1 for a normalized density, up to δ).
+    #[must_use]
+    pub fn hemisphere_integral(&self) -> f64 {
+        self.hemisphere_integral
+    }
+
+    /// The tolerances the table was built with.
+    #[must_use]
+    pub fn tolerance(&self) -> QuadratureTolerance {
+        self.tolerance
+    }
+}

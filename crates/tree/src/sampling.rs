@@ -1,0 +1,387 @@
+//! Random variates for the count tree: binomial, multinomial (exact and the paper's normal
+//! approximation), normal, gamma and Dirichlet, all driven by a node's [`TeaRng`] stream.
+//!
+//! # Exact binomial sampling for any n
+//! - n·min(p, 1−p) < 10: inversion by sequential search from 0, with the pmf recursion
+//!   f(k) = f(k−1)·((n+1)/k − 1)·p/q and f(0) = qⁿ = exp(n·ln(1−p)) (no underflow: qⁿ ≥ e⁻¹⁵).
+//! - Otherwise BTRD, the transformed rejection method with decomposition of Hörmann (1993),
+//!   "The generation of binomial random variates", J. Statist. Comput. Simul. 46. It is exact
+//!   (the acceptance test compares against the true pmf through Stirling's series with the
+//!   tabulated corrections fc(k)) and takes O(1) expected time for any n up to 2⁵³.
+//!
+//! # Multinomial splits (Sec. 3.4, "Optimizations")
+//! [`MultinomialMode::Exact`] draws n ≤ 8 particles one by one (categorical draws) and larger n
+//! as conditional binomials: X₀ ~ Bin(n, p₀), X₁ ~ Bin(n − X₀, p₁/(p₁+p₂+p₃)), and so on.
+//! [`MultinomialMode::Normal`] is the paper's approximation for n > 8: the normal distribution
+//! with mean n·p and covariance n(diag p − ppᵀ), sampled by sequential conditioning
+//! (X₀ ~ N(np₀, np₀(1−p₀)), then X₁ | X₀ ~ N((n−X₀)p₁/(1−p₀), np₁(1−p₀−p₁)/(1−p₀)), …, which
+//! is exactly that Gaussian), rounded to non-negative integers, then fixed up by adding or
+//! removing single particles in component i with probability pᵢ until the sum is n.
+//! Both modes return counts that sum to n, always.
+
+use crate::tea::TeaRng;
+
+/// How a node's particles are divided among its four children.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum MultinomialMode {
+    /// Exact multinomial sampling (categorical for n ≤ 8, conditional exact binomials above).
+    #[default]
+    Exact,
+    /// The paper's normal approximation for n > 8 (exact categorical draws below).
+    Normal,
+}
+
+/// ln(k!) − [(k + ½)·ln(k + 1) − (k + 1) + ½·ln(2π)] for k = 0..=9 (Stirling's correction).
+const STIRLING_CORRECTION: [f64; 10] = [
+    0.081_061_466_795_327_26,
+    0.041_340_695_955_409_3,
+    0.027_677_925_684_998_34,
+    0.020_790_672_103_765_093,
+    0.016_644_691_189_821_193,
+    0.013_876_128_823_070_748,
+    0.011_896_709_945_891_77,
+    0.010_411_265_261_972_096,
+    0.009_255_462_182_712_733,
+    0.008_330_563_433_362_87,
+];
+
+/// Stirling's correction fc(k); the series 1/12 − 1/360 + 1/1260 in 1/(k+1) beyond the table.
+fn stirling_correction(k: f64) -> f64 {
+    if k < 10.0 {
+        return STIRLING_CORRECTION[k as usize];
+    }
+    let r = 1.0 / (k + 1.0);
+    let r2 = r * r;
+    (1.0 / 12.0 - (1.0 / 360.0 - 1.0 / 1260.0 * r2) * r2) * r
+}
+
+/// An exact Bin(n, p) variate. `n` up to 2⁵³ (counts of the tree never exceed that).
+pub fn binomial(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
+    if n == 0 || !(p > 0.0) {
+        return 0;
+    }
+    if p >= 1.0 {
+        return n;
+    }
+    if p > 0.5 {
+        return n - binomial(n, 1.0 - p, rng);
+    }
+    if (n as f64) * p < 10.0 {
+        binomial_inversion(n, p, rng)
+    } else {
+        binomial_btrd(n, p, rng)
+    }
+}
+
+/// Sequential-search inversion, for n·p < 10 and p ≤ ½.
+fn binomial_inversion(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
+    let q = 1.0 - p;
+    let ratio = p / q;
+    let scaled = (n as f64 + 1.0) * ratio;
+    let f0 = ((n as f64) * (-p).ln_1p()).exp();
+    loop {
+        let mut u = rng.uniform();
+        let mut f = f0;
+        let mut k = 0u64;
+        // n·p < 10: the search ends within ~10 + a few·√10 steps except with negligible
+        // probability; the bound only guards against rounding leaving u > 0 forever.
+        while k <= n && k < 200 {
+            if u < f {
+                return k;
+            }
+            u -= f;
+            k += 1;
+            f *= scaled / k as f64 - ratio;
+        }
+    }
+}
+
+/// Hörmann's BTRD, for n·p ≥ 10 and p ≤ ½.
+fn binomial_btrd(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
+    let nf = n as f64;
+    let q = 1.0 - p;
+    let mode = ((nf + 1.0) * p).floor();
+    let r = p / q;
+    let nr = (nf + 1.0) * r;
+    let npq = nf * p * q;
+    let spq = npq.sqrt();
+    let b = 1.15 + 2.53 * spq;
+    let a = -0.0873 + 0.0248 * b + 0.01 * p;
+    let c = nf * p + 0.5;
+    let alpha = (2.83 + 5.1 / b) * spq;
+    let v_r = 0.92 - 4.2 / b;
+    let u_r_v_r = 0.86 * v_r;
+    loop {
+        // Step 1: the region of immediate acceptance.
+        let mut v = rng.uniform();
+        if v <= u_r_v_r {
+            let u = v / v_r - 0.43;
+            return ((2.0 * a / (0.5 - u.abs()) + b) * u + c).floor() as u64;
+        }
+        // Step 2: generate u and v for the rejection test.
+        let u = if v >= v_r {
+            rng.uniform() - 0.5
+        } else {
+            let w = v / v_r - 0.93;
+            v = rng.uniform() * v_r;
+            0.5_f64.copysign(w) - w
+        };
+        // Step 3.0: the candidate.
+        let us = 0.5 - u.abs();
+        let k = ((2.0 * a / us + b) * u + c).floor();
+        if k < 0.0 || k > nf {
+            continue;
+        }
+        v *= alpha / (a / (us * us) + b);
+        let km = (k - mode).abs();
+        if km <= 15.0 {
+            // Step 3.1: f(k)/f(mode) by the pmf recursion.
+            let mut f = 1.0;
+            if mode < k {
+                let mut i = mode;
+                while i < k {
+                    i += 1.0;
+                    f *= nr / i - r;
+                }
+            } else if mode > k {
+                let mut i = k;
+                while i < mode {
+                    i += 1.0;
+                    v *= nr / i - r;
+                }
+            }
+            if v <= f {
+                return k as u64;
+            }
+            continue;
+        }
+        // Step 3.2: squeeze with the normal approximation of ln f(k)/f(mode).
+        let v = v.ln();
+        let rho = (km / npq) * (((km / 3.0 + 0.625) * km + 1.0 / 6.0) / npq + 0.5);
+        let t = -km * km / (2.0 * npq);
+        if v < t - rho {
+            return k as u64;
+        }
+        if v > t + rho {
+            continue;
+        }
+        // Steps 3.3–3.4: the final acceptance test, ln f(k)/f(mode) through Stirling's series.
+        let nm = nf - mode + 1.0;
+        let h = (mode + 0.5) * ((mode + 1.0) / (r * nm)).ln()
+            + stirling_correction(mode)
+            + stirling_correction(nf - mode);
+        let nk = nf - k + 1.0;
+        let bound = h + (nf + 1.0) * (nm / nk).ln() + (k + 0.5) * (nk * r / (k + 1.0)).ln()
+            - stirling_correction(k)
+            - stirling_correction(nf - k);
+        if v <= bound {
+            return k as u64;
+        }
+    }
+}
+
+/// Splits `n` particles among four children with probabilities `p` (non-negative, summing to
+/// 1 up to rounding). The result always sums to `n`.
+pub fn multinomial4(n: u64, p: [f64; 4], mode: MultinomialMode, rng: &mut TeaRng) -> [u64; 4] {
+    if n <= 8 {
+        return categorical_counts(n, p, rng);
+    }
+    match mode {
+        MultinomialMode::Exact => {
+            let mut counts = [0u64; 4];
+            let mut remaining = n;
+            for i in 0..3 {
+                if remaining == 0 {
+                    break;
+                }
+                // The remaining probability as a sum (not 1 − Σ), so it stays exact.
+                let rest: f64 = p[i..].iter().sum();
+                let conditional = if rest > 0.0 {
+                    (p[i] / rest).min(1.0)
+                } else {
+                    0.0
+                };
+                counts[i] = binomial(remaining, conditional, rng);
+                remaining -= counts[i];
+            }
+            counts[3] = remaining;
+            counts
+        }
+        MultinomialMode::Normal => multinomial4_normal(n, p, rng),
+    }
+}
+
+/// n categorical draws, counted.
+fn categorical_counts(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 4] {
+    let mut counts = [0u64; 4];
+    for _ in 0..n {
+        counts[categorical(p, rng.uniform())] += 1;
+    }
+    counts
+}
+
+/// The category of uniform `u` under probabilities `p` (robust to p not summing to 1 exactly).
+fn categorical(p: [f64; 4], u: f64) -> usize {
+    let total = p[0] + p[1] + p[2] + p[3];
+    let mut threshold = u * total;
+    for (i, &pi) in p.iter().enumerate().take(3) {
+        if threshold < pi {
+            return i;
+        }
+        threshold -= pi;
+    }
+    // Rounding can leave a sliver past the third category: give it to the last positive one.
+    (0..4).rev().find(|&i| p[i] > 0.0).unwrap_or(3)
+}
+
+/// The paper's normal approximation (see the module docs).
+fn multinomial4_normal(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 4] {
+    let nf = n as f64;
+    let mut real = [0.0f64; 4];
+    let mut drawn = 0.0;
+    for i in 0..3 {
+        let rest: f64 = p[i..].iter().sum();
+        if !(rest > 0.0) || !(p[i] > 0.0) {
+            continue;
+        }
+        let share = (p[i] / rest).min(1.0);
+        let remaining = (nf - drawn).max(0.0);
+        let mean = remaining * share;
+        // Var(X_i | earlier) of the Gaussian: n·p_i·(rest − p_i)/rest.
+        let variance = nf * p[i] * (rest - p[i]) / rest;
+        real[i] = mean + variance.max(0.0).sqrt() * standard_normal(rng);
+        drawn += real[i];
+    }
+    real[3] = nf - drawn;
+    let mut counts = real.map(|x| x.round().max(0.0) as u64);
+    for i in 0..4 {
+        if !(p[i] > 0.0) {
+            counts[i] = 0;
+        }
+    }
+    let mut sum: u64 = counts.iter().sum();
+    while sum != n {
+        let i = categorical(p, rng.uniform());
+        if sum < n {
+            counts[i] += 1;
+            sum += 1;
+        } else if counts[i] > 0 {
+            counts[i] -= 1;
+            sum -= 1;
+        }
+    }
+    counts
+}
+
+/// A standard normal variate by Marsaglia's polar method (no trigonometry).
+pub fn standard_normal(rng: &mut TeaRng) -> f64 {
+    loop {
+        let x = 2.0 * rng.uniform() - 1.0;
+        let y = 2.0 * rng.uniform() - 1.0;
+        let s = x * x + y * y;
+        if s > 0.0 && s < 1.0 {
+            return x * (-2.0 * s.ln() / s).sqrt();
+        }
+    }
+}
+
+/// A Gamma(shape, 1) variate for shape ≥ 1, by Marsaglia and Tsang (2000).
+pub fn gamma(shape: f64, rng: &mut TeaRng) -> f64 {
+    debug_assert!(shape >= 1.0);
+    let d = shape - 1.0 / 3.0;
+    let c = 1.0 / (9.0 * d).sqrt();
+    loop {
+        let x = standard_normal(rng);
+        let v = 1.0 + c * x;
+        if v <= 0.0 {
+            continue;
+        }
+        let v = v * v * v;
+        let u = rng.uniform();
+        let x2 = x * x;
+        if u < 1.0 - 0.0331 * x2 * x2 || u.ln() < 0.5 * x2 + d * (1.0 - v + v.ln()) {
+            return d * v;
+        }
+    }
+}
+
+/// Splits a total of 1 among four parts as Dirichlet(n₀, n₁, n₂, n₃) (parts with nᵢ = 0 get 0):
+/// the areas of four groups of particles whose individual areas are Dirichlet(1, …, 1) over all
+/// particles (Sec. 3.4, "Additional state", by the aggregation property).
+pub fn dirichlet4(counts: [u64; 4], rng: &mut TeaRng) -> [f64; 4] {
+    let draws = counts.map(|n| if n == 0 { 0.0 } else { gamma(n as f64, rng) });
+    let total: f64 = draws.iter().sum();
+    if total > 0.0 {
+        draws.map(|g| g / total)
+    } else {
+        [0.0; 4]
+    }
+}
+
+/// An Exp(1) = Gamma(1) variate: the unnormalized share of one particle.
+pub fn exponential(rng: &mut TeaRng) -> f64 {
+    -(1.0 - rng.uniform()).ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rng(purpose: u32) -> TeaRng {
+        TeaRng::new([11, 22, 33, 44], purpose, crate::tea::DEFAULT_ROUNDS)
+    }
+
+    #[test]
+    fn stirling_table_continues_into_the_series() {
+        // The series at k = 9 agrees with the table to its truncation error.
+        let r = 1.0 / 10.0_f64;
+        let series = (1.0 / 12.0 - (1.0 / 360.0 - 1.0 / 1260.0 * r * r) * r * r) * r;
+        assert!((series - STIRLING_CORRECTION[9]).abs() < 1e-9);
+    }
+
+    #[test]
+    fn binomial_extremes() {
+        let mut r = rng(1);
+        assert_eq!(binomial(0, 0.3, &mut r), 0);
+        assert_eq!(binomial(10, 0.0, &mut r), 0);
+        assert_eq!(binomial(10, 1.0, &mut r), 10);
+        assert_eq!(binomial(10, f64::NAN, &mut r), 0);
+        for _ in 0..1000 {
+            assert!(binomial(1_000_000_000_000_000, 0.5, &mut r) <= 1_000_000_000_000_000);
+            assert!(binomial(1_000_000_000_000_000, 1e-15, &mut r) < 100);
+        }
+    }
+
+    #[test]
+    fn multinomial_sums_to_n_in_both_modes() {
+        let mut r = rng(2);
+        for mode in [MultinomialMode::Exact, MultinomialMode::Normal] {
+            for n in [0, 1, 7, 8, 9, 10, 1000, 123_456_789, 1_000_000_000_000_000] {
+                for p in [
+                    [0.25; 4],
+                    [1.0, 0.0, 0.0, 0.0],
+                    [0.0, 0.0, 0.0, 1.0],
+                    [0.7, 0.2, 0.1, 0.0],
+                    [1e-12, 0.5, 0.5 - 1e-12, 0.0],
+                ] {
+                    let c = multinomial4(n, p, mode, &mut r);
+                    assert_eq!(c.iter().sum::<u64>(), n, "{mode:?} {n} {p:?}");
+                    for i in 0..4 {
+                        if p[i] == 0.0 {
+                            assert_eq!(c[i], 0);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn dirichlet_parts_sum_to_one() {
+        let mut r = rng(3);
+        let parts = dirichlet4([3, 0, 1_000_000, 1], &mut r);
+        assert!((parts.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        assert_eq!(parts[1], 0.0);
+        assert_eq!(dirichlet4([0; 4], &mut r), [0.0; 4]);
+    }
+}

@@ -1,0 +1,210 @@
+//! Checkers of the count tree: Beckmann reference densities, the expected count by independent
+//! Monte Carlo, binomial moments over footprints, multinomial chi-square tests.
+
+use std::sync::Arc;
+
+use glam::{DVec2, DVec3};
+use glint_sphere::SphericalConic;
+use glint_tree::sampling::{MultinomialMode, multinomial4};
+use glint_tree::tea::TeaRng;
+use glint_tree::{CountTree, CountTreeConfig, Footprint, NormalDensity, QueryScratch};
+use statrs::distribution::{ChiSquared, ContinuousCDF, Discrete};
+
+use crate::SplitMix64;
+use crate::geometry::uniform_in_cone;
+
+/// The anisotropic Beckmann particle normal density p(m) = D(m)·cos θ, written here from its
+/// definition (independently of glint-brdf, which glint-tree does not know):
+/// D(m) = exp(−(x²/α_x² + y²/α_y²)/z²) / (π α_x α_y z⁴).
+#[must_use]
+pub fn beckmann_density(alpha_x: f64, alpha_y: f64) -> Arc<NormalDensity> {
+    Arc::new(move |m: DVec3| {
+        if m.z <= 0.0 {
+            return 0.0;
+        }
+        let z2 = m.z * m.z;
+        let exponent = (m.x * m.x / (alpha_x * alpha_x) + m.y * m.y / (alpha_y * alpha_y)) / z2;
+        (-exponent).exp() / (std::f64::consts::PI * alpha_x * alpha_y * z2 * m.z)
+    })
+}
+
+/// ∫ over the conic of p(m) dm by Monte Carlo over reflected directions: ω_r uniform in the
+/// cone of radius γ around ω_o, m the half vector of (ω_i, ω_r), kept when it is a reflecting
+/// facet by definition; the half-vector map has Jacobian dm/dω_r = 1/(4 ω_i·m).
+/// Returns (estimate, standard error).
+#[must_use]
+pub fn conic_integral_by_sampling(
+    density: &NormalDensity,
+    conic: &SphericalConic,
+    samples: usize,
+    rng: &mut SplitMix64,
+) -> (f64, f64) {
+    let cone_solid_angle = 4.0 * std::f64::consts::PI * (0.5 * conic.gamma()).sin().powi(2);
+    let (mut sum, mut sum2) = (0.0, 0.0);
+    for _ in 0..samples {
+        let reflected = uniform_in_cone(conic.wo(), conic.gamma(), rng.uniform(), rng.uniform());
+        let m = (conic.wi() + reflected).normalize();
+        let value = if m.is_finite() && conic.contains_by_reflection(m) {
+            density(m) / (4.0 * conic.wi().dot(m))
+        } else {
+            0.0
+        };
+        sum += value;
+        sum2 += value * value;
+    }
+    let n = samples as f64;
+    let mean = sum / n;
+    let variance = (sum2 / n - mean * mean).max(0.0) / n;
+    (cone_solid_angle * mean, cone_solid_angle * variance.sqrt())
+}
+
+/// Counts of `queries` square footprints of side `side` at random positions.
+#[must_use]
+pub fn counts_over_footprints(
+    tree: &CountTree,
+    conic: &SphericalConic,
+    side: f64,
+    queries: usize,
+    seed: u64,
+) -> Vec<f64> {
+    let mut rng = SplitMix64::new(seed);
+    let mut scratch = QueryScratch::new();
+    (0..queries)
+        .map(|_| {
+            let uv = DVec2::new(rng.uniform(), rng.uniform());
+            let footprint = Footprint::new(uv, DVec2::new(side, 0.0), DVec2::new(0.0, side))
+                .expect("finite footprint");
+            tree.query(&footprint, conic, &mut scratch).count
+        })
+        .collect()
+}
+
+/// Mean and variance of a sample.
+#[must_use]
+pub fn mean_and_variance(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, variance)
+}
+
+/// A tree with Beckmann α and the given particle count, seed and ε; other settings default.
+///
+/// # Panics
+/// If the configuration is invalid (a bug in the caller).
+#[must_use]
+pub fn beckmann_tree(
+    alpha: f64,
+    particles: u64,
+    seed: u64,
+    epsilon: f64,
+    mode: MultinomialMode,
+) -> CountTree {
+    let config = CountTreeConfig {
+        particles,
+        seed,
+        epsilon,
+        multinomial: mode,
+        ..CountTreeConfig::default()
+    };
+    CountTree::new(config, beckmann_density(alpha, alpha)).expect("valid configuration")
+}
+
+/// A chi-square goodness-of-fit test of the tree's 4-way multinomial split of `n` with
+/// probabilities `p`, over `draws` independent node streams.
+///
+/// Under the exact multinomial, X₀ ~ Bin(n, p₀), X₁ | X₀ ~ Bin(n − X₀, p₁/(p₁+p₂+p₃)) and
+/// X₂ | X₀, X₁ ~ Bin(n − X₀ − X₁, p₂/(p₂+p₃)), so the randomized probability integral
+/// transforms U = F(X − 1) + V·f(X) (V uniform) of the three are independent Uniform(0, 1).
+/// Their 3·draws values go into 20 equal bins; the Pearson statistic's p-value is returned.
+#[must_use]
+pub fn multinomial_chi_square(
+    n: u64,
+    p: [f64; 4],
+    mode: MultinomialMode,
+    draws: usize,
+    seed: u32,
+) -> f64 {
+    let mut jitter = SplitMix64::new(u64::from(seed) ^ 0xC41);
+    let bins = 20;
+    let mut observed = vec![0.0; bins];
+    for i in 0..draws {
+        let mut rng = TeaRng::new([seed, i as u32, 0x5EED, 7], 0, 8);
+        let x = multinomial4(n, p, mode, &mut rng);
+        let mut remaining = n;
+        for component in 0..3 {
+            let rest: f64 = p[component..].iter().sum();
+            let share = if rest > 0.0 {
+                (p[component] / rest).min(1.0)
+            } else {
+                0.0
+            };
+            let u = randomized_pit(remaining, share, x[component], jitter.uniform());
+            observed[((u * bins as f64) as usize).min(bins - 1)] += 1.0;
+            remaining -= x[component];
+        }
+    }
+    let expected = vec![3.0 * draws as f64 / bins as f64; bins];
+    chi_square_p_value(&observed, &expected)
+}
+
+/// F(k − 1) + v·f(k) for Bin(n, p): uniform on (0, 1) when k ~ Bin(n, p) and v ~ U(0, 1).
+///
+/// The binomial CDF comes from statrs while n·p·(1−p) ≤ 10⁶; beyond, statrs' incomplete beta
+/// function fails (it returns values outside [0, 1] near the mean at n = 10⁹), and the normal
+/// distribution with continuity correction stands in: its error, about the skewness
+/// (1 − 2p)/(6√(npq)) < 2e-4, is far below what 10⁴ draws resolve.
+fn randomized_pit(n: u64, p: f64, k: u64, v: f64) -> f64 {
+    if n == 0 || p <= 0.0 || p >= 1.0 {
+        return v;
+    }
+    let variance = n as f64 * p * (1.0 - p);
+    if variance > 1e6 {
+        let normal =
+            statrs::distribution::Normal::new(n as f64 * p, variance.sqrt()).expect("valid normal");
+        let below = normal.cdf(k as f64 - 0.5);
+        let through = normal.cdf(k as f64 + 0.5);
+        return (below + v * (through - below)).clamp(0.0, 1.0);
+    }
+    let binomial = statrs::distribution::Binomial::new(p, n).expect("valid binomial");
+    let below = if k == 0 {
+        0.0
+    } else {
+        statrs::distribution::DiscreteCDF::cdf(&binomial, k - 1)
+    };
+    (below + v * binomial.pmf(k)).clamp(0.0, 1.0)
+}
+
+/// Pearson's chi-square p-value after pooling cells with expected count below 5.
+#[must_use]
+pub fn chi_square_p_value(observed: &[f64], expected: &[f64]) -> f64 {
+    let mut pooled_observed = Vec::new();
+    let mut pooled_expected = Vec::new();
+    let (mut carry_observed, mut carry_expected) = (0.0, 0.0);
+    for (&o, &e) in observed.iter().zip(expected) {
+        carry_observed += o;
+        carry_expected += e;
+        if carry_expected >= 5.0 {
+            pooled_observed.push(carry_observed);
+            pooled_expected.push(carry_expected);
+            carry_observed = 0.0;
+            carry_expected = 0.0;
+        }
+    }
+    if let (Some(lo), Some(le)) = (pooled_observed.last_mut(), pooled_expected.last_mut()) {
+        *lo += carry_observed;
+        *le += carry_expected;
+    }
+    if pooled_expected.len() < 2 {
+        return 1.0;
+    }
+    let statistic: f64 = pooled_observed
+        .iter()
+        .zip(&pooled_expected)
+        .map(|(o, e)| (o - e) * (o - e) / e)
+        .sum();
+    let freedom = (pooled_expected.len() - 1) as f64;
+    1.0 - ChiSquared::new(freedom)
+        .expect("positive degrees of freedom")
+        .cdf(statistic)
+}

@@ -1,0 +1,321 @@
+//! glint-tree: determinism, additivity, binomial statistics, multinomial chi-square, coherence,
+//! extremes and allocation-free queries.
+
+use std::f64::consts::PI;
+
+use glam::{DVec2, DVec3};
+use glint_sphere::SphericalConic;
+use glint_tests::SplitMix64;
+use glint_tests::counts::{
+    beckmann_tree, conic_integral_by_sampling, counts_over_footprints, mean_and_variance,
+    multinomial_chi_square,
+};
+use glint_tests::geometry::direction;
+use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
+
+fn near_specular_conic(gamma_deg: f64) -> SphericalConic {
+    SphericalConic::new(
+        direction(0.3, 0.2),
+        direction(0.25, 0.2 + PI),
+        gamma_deg.to_radians(),
+    )
+    .unwrap()
+}
+
+fn square(uv: DVec2, side: f64) -> Footprint {
+    Footprint::new(uv, DVec2::new(side, 0.0), DVec2::new(0.0, side)).unwrap()
+}
+
+#[test]
+fn same_query_is_bit_identical_in_any_thread_and_order() {
+    let tree = beckmann_tree(0.2, 1_000_000, 7, 0.1, MultinomialMode::Normal);
+    let conic = near_specular_conic(3.0);
+    let mut rng = SplitMix64::new(3);
+    let footprints: Vec<Footprint> = (0..200)
+        .map(|_| square(DVec2::new(rng.uniform(), rng.uniform()), 0.003))
+        .collect();
+    let mut scratch = QueryScratch::new();
+    let forward: Vec<_> = footprints
+        .iter()
+        .map(|f| tree.query(f, &conic, &mut scratch))
+        .collect();
+    let backward: Vec<_> = footprints
+        .iter()
+        .rev()
+        .map(|f| tree.query(f, &conic, &mut scratch))
+        .collect();
+    let threaded: Vec<_> = std::thread::scope(|scope| {
+        let handles: Vec<_> = footprints
+            .chunks(50)
+            .map(|chunk| {
+                let tree = &tree;
+                let conic = &conic;
+                scope.spawn(move || {
+                    let mut scratch = QueryScratch::new();
+                    chunk
+                        .iter()
+                        .map(|f| tree.query(f, conic, &mut scratch))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    });
+    for (i, result) in forward.iter().enumerate() {
+        assert_eq!(
+            result.count.to_bits(),
+            backward[footprints.len() - 1 - i].count.to_bits()
+        );
+        assert_eq!(result.count.to_bits(), threaded[i].count.to_bits());
+        assert_eq!(result.nodes_visited, threaded[i].nodes_visited);
+    }
+    assert!(forward.iter().any(|r| r.count > 0.0));
+}
+
+/// Exact mode: two footprints that tile a third count exactly as many particles.
+#[test]
+fn exact_counts_are_additive() {
+    let mut rng = SplitMix64::new(11);
+    for (alpha, particles, gamma_deg) in [
+        (0.2, 1_000_000, 5.0),
+        (0.05, 100_000_000, 1.0),
+        (0.5, 10_000, 10.0),
+    ] {
+        let tree = beckmann_tree(alpha, particles, 5, 0.0, MultinomialMode::Exact);
+        let conic = near_specular_conic(gamma_deg);
+        let mut scratch = QueryScratch::new();
+        for _ in 0..40 {
+            let uv = DVec2::new(rng.uniform(), rng.uniform());
+            let dx = DVec2::new(0.01 + 0.02 * rng.uniform(), 0.005 * rng.uniform());
+            let dy = DVec2::new(-0.004 * rng.uniform(), 0.01 + 0.02 * rng.uniform());
+            let whole = Footprint::new(uv, dx, dy).unwrap();
+            let left = Footprint::new(uv - 0.25 * dx, 0.5 * dx, dy).unwrap();
+            let right = Footprint::new(uv + 0.25 * dx, 0.5 * dx, dy).unwrap();
+            let total = tree.query(&whole, &conic, &mut scratch).count;
+            let parts = tree.query(&left, &conic, &mut scratch).count
+                + tree.query(&right, &conic, &mut scratch).count;
+            assert_eq!(total.fract(), 0.0, "exact counts are whole particles");
+            assert_eq!(total, parts, "α {alpha}, N {particles}, uv {uv}");
+        }
+    }
+}
+
+/// ε = 0: over 3000 random footprints, the mean count matches N·area·∫p over the conic, with
+/// the integral from an independent Monte Carlo over reflected directions, and the
+/// variance/mean ratio is 1 − q (binomial) within sampling error (5 standard errors).
+#[test]
+fn exact_counts_are_binomial() {
+    for (alpha, particles, gamma_deg, side) in
+        [(0.2, 1_000_000, 5.0, 0.01), (0.1, 100_000_000, 1.0, 0.002)]
+    {
+        let tree = beckmann_tree(alpha, particles, 21, 0.0, MultinomialMode::Exact);
+        let conic = near_specular_conic(gamma_deg);
+        let density = glint_tests::counts::beckmann_density(alpha, alpha);
+        let (integral, integral_error) =
+            conic_integral_by_sampling(density.as_ref(), &conic, 400_000, &mut SplitMix64::new(4));
+        let area = side * side;
+        let expected = particles as f64 * area * integral;
+        let queries = 3000;
+        let counts = counts_over_footprints(&tree, &conic, side, queries, 99);
+        let (mean, variance) = mean_and_variance(&counts);
+        let q = area * integral;
+        let standard_error =
+            (expected * (1.0 - q) / queries as f64).sqrt() + expected * integral_error / integral;
+        assert!(
+            (mean - expected).abs() < 5.0 * standard_error,
+            "α {alpha}: mean {mean} vs N·A·∫p = {expected} ± {standard_error}"
+        );
+        // Dispersion index of a binomial: 1 − q; its sampling sd ≈ √(2/queries).
+        let dispersion = variance / mean;
+        assert!(
+            (dispersion - (1.0 - q)).abs() < 5.0 * (2.0 / queries as f64).sqrt(),
+            "α {alpha}: variance/mean {dispersion}"
+        );
+    }
+}
+
+/// Multinomial splits against the exact multinomial (randomized PIT chi-square, α = 1e-4 per
+/// test, 2000 draws each): the exact mode passes for every n; the normal approximation passes
+/// from n = 100 on (below, it is reported by `cargo xtask validate`).
+#[test]
+fn multinomial_splits_pass_chi_square() {
+    let probabilities = [[0.25; 4], [0.1, 0.2, 0.3, 0.4], [0.7, 0.01, 0.09, 0.2]];
+    for n in [1u64, 2, 5, 8, 9, 20, 100, 10_000, 1_000_000_000] {
+        for (k, p) in probabilities.iter().enumerate() {
+            let seed = (n as u32).wrapping_mul(31).wrapping_add(k as u32);
+            let exact = multinomial_chi_square(n, *p, MultinomialMode::Exact, 2000, seed);
+            assert!(
+                exact > 1e-4,
+                "exact multinomial n = {n}, p = {p:?}: p-value {exact}"
+            );
+            if n >= 100 {
+                let normal = multinomial_chi_square(n, *p, MultinomialMode::Normal, 2000, seed);
+                assert!(
+                    normal > 1e-4,
+                    "normal approximation n = {n}, p = {p:?}: p-value {normal}"
+                );
+            }
+        }
+    }
+}
+
+/// Footprints overlapping by a fraction f have counts correlated by about f (exact mode).
+#[test]
+fn overlapping_footprints_are_correlated_by_their_overlap() {
+    let tree = beckmann_tree(0.3, 4_000_000, 3, 0.0, MultinomialMode::Exact);
+    let conic = near_specular_conic(6.0);
+    let side = 0.01;
+    let mut scratch = QueryScratch::new();
+    for overlap in [0.0, 0.25, 0.5, 0.75, 1.0] {
+        let mut rng = SplitMix64::new(8);
+        let pairs: Vec<(f64, f64)> = (0..1500)
+            .map(|_| {
+                let uv = DVec2::new(rng.uniform(), rng.uniform());
+                let shifted = uv + DVec2::new((1.0 - overlap) * side, 0.0);
+                (
+                    tree.query(&square(uv, side), &conic, &mut scratch).count,
+                    tree.query(&square(shifted, side), &conic, &mut scratch)
+                        .count,
+                )
+            })
+            .collect();
+        let (a, b): (Vec<f64>, Vec<f64>) = pairs.iter().copied().unzip();
+        let (mean_a, var_a) = mean_and_variance(&a);
+        let (mean_b, var_b) = mean_and_variance(&b);
+        let covariance = pairs
+            .iter()
+            .map(|(x, y)| (x - mean_a) * (y - mean_b))
+            .sum::<f64>()
+            / (pairs.len() as f64 - 1.0);
+        let correlation = covariance / (var_a * var_b).sqrt();
+        // Sampling sd of a correlation ≈ (1 − ρ²)/√n ≤ 0.026; allow 4 sd.
+        assert!(
+            (correlation - overlap).abs() < 0.1,
+            "overlap {overlap}: correlation {correlation}"
+        );
+    }
+}
+
+/// The extremes of DESIGN.md through the public API: finite, non-negative, bounded.
+#[test]
+fn extreme_parameters_give_finite_bounded_answers() {
+    let mut scratch = QueryScratch::new();
+    for particles in [1u64, 2, 1000, 1_000_000_000, 1_000_000_000_000_000] {
+        for epsilon in [0.0, 0.1] {
+            let config = CountTreeConfig {
+                particles,
+                epsilon,
+                multinomial: MultinomialMode::Normal,
+                node_budget: 20_000,
+                ..CountTreeConfig::default()
+            };
+            let tree =
+                CountTree::new(config, glint_tests::counts::beckmann_density(0.1, 0.1)).unwrap();
+            for (uv, side) in [
+                (DVec2::new(0.5, 0.5), 1e-14),
+                (DVec2::new(1e6 + 0.3, -1e6 + 0.2), 1e-3),
+                (DVec2::new(0.1, 0.9), 1.0),
+                (DVec2::new(0.7, 0.2), 100.0),
+            ] {
+                for conic in [
+                    near_specular_conic(0.01),
+                    near_specular_conic(60.0),
+                    SphericalConic::new(
+                        direction(PI / 2.0 - 1e-6, 0.0),
+                        direction(PI / 2.0 - 1e-6, PI),
+                        0.02,
+                    )
+                    .unwrap(),
+                    SphericalConic::new(DVec3::Z, DVec3::Z, 0.01).unwrap(),
+                ] {
+                    let footprint = square(uv, side);
+                    let result = tree.query(&footprint, &conic, &mut scratch);
+                    let multiplicity_bound = (side + 1.0).ceil().powi(2);
+                    assert!(result.count.is_finite() && result.count >= 0.0);
+                    assert!(result.count <= particles as f64 * multiplicity_bound);
+                    assert!(result.d_hat.iter().all(|d| d.is_finite() && *d >= 0.0));
+                    // The budget, plus the queue it finds (at most three children per node).
+                    assert!(
+                        result.nodes_visited <= 4 * 20_000 + 1,
+                        "{} nodes",
+                        result.nodes_visited
+                    );
+                }
+            }
+        }
+    }
+    // Degenerate (zero-area) footprints see nothing.
+    let tree = beckmann_tree(0.1, 1_000_000, 1, 0.0, MultinomialMode::Exact);
+    let line = Footprint::new(
+        DVec2::new(0.3, 0.3),
+        DVec2::new(0.01, 0.01),
+        DVec2::new(0.02, 0.02),
+    )
+    .unwrap();
+    assert_eq!(
+        tree.query(&line, &near_specular_conic(5.0), &mut scratch)
+            .count,
+        0.0
+    );
+}
+
+/// Once the scratch space has grown, a query allocates nothing.
+#[test]
+fn queries_do_not_allocate() {
+    let tree = beckmann_tree(0.1, 1_000_000, 1, 0.1, MultinomialMode::Normal);
+    let conic = near_specular_conic(6.0);
+    let mut scratch = QueryScratch::new();
+    let mut rng = SplitMix64::new(5);
+    let footprints: Vec<Footprint> = (0..500)
+        .map(|_| square(DVec2::new(rng.uniform(), rng.uniform()), 0.001))
+        .collect();
+    for f in &footprints {
+        let _ = tree.query(f, &conic, &mut scratch);
+    }
+    let before = crate::counting_allocator::allocations();
+    for f in &footprints {
+        let _ = tree.query(f, &conic, &mut scratch);
+    }
+    assert_eq!(crate::counting_allocator::allocations() - before, 0);
+}
+
+/// With particle areas (Dirichlet, Sec. 3.4), D̂ per channel has the same mean as count/N, and
+/// channels differ per footprint.
+#[test]
+fn particle_areas_have_the_mean_of_counts() {
+    let config = CountTreeConfig {
+        particles: 200_000,
+        seed: 4,
+        epsilon: 0.0,
+        colour_channels: 3,
+        ..CountTreeConfig::default()
+    };
+    let tree = CountTree::new(config, glint_tests::counts::beckmann_density(0.3, 0.3)).unwrap();
+    let conic = near_specular_conic(8.0);
+    let mut scratch = QueryScratch::new();
+    let mut rng = SplitMix64::new(6);
+    let (mut sum_counts, mut sum_areas) = (0.0, [0.0; 3]);
+    let mut differing = 0;
+    for _ in 0..1500 {
+        let f = square(DVec2::new(rng.uniform(), rng.uniform()), 0.02);
+        let r = tree.query(&f, &conic, &mut scratch);
+        sum_counts += r.count / 200_000.0;
+        for (sum, d) in sum_areas.iter_mut().zip(r.d_hat) {
+            *sum += d;
+        }
+        if r.count > 0.0 && r.d_hat[0] != r.d_hat[1] {
+            differing += 1;
+        }
+    }
+    for (channel, sum) in sum_areas.iter().enumerate() {
+        // Areas of k particles: mean k/N, relative sd ~ 1/√k per query; the sums agree to ~2%.
+        assert!(
+            (sum / sum_counts - 1.0).abs() < 0.05,
+            "channel {channel}: {sum} vs {sum_counts}"
+        );
+    }
+    assert!(differing > 100);
+}
