@@ -7,7 +7,9 @@
 
 use glint_sphere::{Classification, SphericalConic, SphericalTriangle};
 use glint_tests::SplitMix64;
+use glint_tests::counts::{beckmann_density, highlight_query};
 use glint_tests::geometry::ConicCase;
+use glint_tree::{CountTree, CountTreeConfig, Footprint, expected_conic_solid_angle};
 
 /// `n` random cases of every kind the validation draws (extremes included).
 #[must_use]
@@ -59,4 +61,102 @@ pub fn partial_tree_cases(n: usize, seed: u64) -> Vec<(SphericalConic, Spherical
     }
     out.truncate(n);
     out
+}
+
+/// A material setting of the paper's Table 1 (Beckmann, ε = 0.1).
+#[derive(Clone, Copy, Debug)]
+pub struct Table1Setting {
+    /// A short name for tables and benchmark ids.
+    pub name: &'static str,
+    /// N.
+    pub particles: u64,
+    /// γ in degrees.
+    pub gamma_degrees: f64,
+    /// Beckmann α.
+    pub alpha: f64,
+}
+
+/// The settings of the paper's scenes: sphere lights (N = 10⁶, γ = 6°, α = 0.1), N = 10⁹ at
+/// γ = 0.5°, the stained glass floor (N = 10⁸, γ = 1°, α = 0.01) and the ornaments' range
+/// (N = 4·10⁵ … 9·10⁶, γ = 5°, α = 0.1–0.4).
+pub const TABLE1: [Table1Setting; 6] = [
+    Table1Setting {
+        name: "spheres_1e6_6deg_a0.1",
+        particles: 1_000_000,
+        gamma_degrees: 6.0,
+        alpha: 0.1,
+    },
+    Table1Setting {
+        name: "dense_1e9_0.5deg_a0.1",
+        particles: 1_000_000_000,
+        gamma_degrees: 0.5,
+        alpha: 0.1,
+    },
+    Table1Setting {
+        name: "glass_1e8_1deg_a0.01",
+        particles: 100_000_000,
+        gamma_degrees: 1.0,
+        alpha: 0.01,
+    },
+    Table1Setting {
+        name: "ornament_4e5_5deg_a0.2",
+        particles: 400_000,
+        gamma_degrees: 5.0,
+        alpha: 0.2,
+    },
+    Table1Setting {
+        name: "ornament_9e6_5deg_a0.4",
+        particles: 9_000_000,
+        gamma_degrees: 5.0,
+        alpha: 0.4,
+    },
+    Table1Setting {
+        name: "ornament_8e5_5deg_a0.1",
+        particles: 800_000,
+        gamma_degrees: 5.0,
+        alpha: 0.1,
+    },
+];
+
+/// The side of a 1080p pixel's footprint on a texture spanning the frame: ~10⁻³.
+pub const PIXEL_FOOTPRINT_SIDE: f64 = 1e-3;
+
+/// The tree of a setting (ε = 0.1, Eq. 11 tuned to pixel footprints and the setting's γ) and
+/// `n` queries near the highlight.
+#[must_use]
+pub fn table1_workload(
+    setting: &Table1Setting,
+    n: usize,
+    seed: u64,
+) -> (CountTree, Vec<(Footprint, SphericalConic)>) {
+    let gamma = setting.gamma_degrees.to_radians();
+    let config = CountTreeConfig {
+        particles: setting.particles,
+        seed,
+        epsilon: 0.1,
+        expected_query_area: PIXEL_FOOTPRINT_SIDE * PIXEL_FOOTPRINT_SIDE,
+        expected_query_solid_angle: expected_conic_solid_angle(gamma),
+        ..CountTreeConfig::default()
+    };
+    let tree = CountTree::new(config, beckmann_density(setting.alpha, setting.alpha))
+        .expect("valid setting");
+    let mut rng = SplitMix64::new(seed ^ 0x7AB1E1);
+    let queries = (0..n)
+        .map(|_| highlight_query(setting.alpha, gamma, PIXEL_FOOTPRINT_SIDE, &mut rng))
+        .collect();
+    (tree, queries)
+}
+
+/// Mean tree nodes visited and particles found per query over a setting's workload.
+#[must_use]
+pub fn table1_statistics(setting: &Table1Setting, n: usize, seed: u64) -> (f64, f64) {
+    let (tree, queries) = table1_workload(setting, n, seed);
+    let mut scratch = glint_tree::QueryScratch::new();
+    let (mut nodes, mut particles) = (0.0, 0.0);
+    for (footprint, conic) in &queries {
+        let result = tree.query(footprint, conic, &mut scratch);
+        nodes += f64::from(result.nodes_visited);
+        particles += result.count;
+    }
+    (nodes / n as f64, particles / n as f64)
 }

@@ -208,3 +208,42 @@ pub fn chi_square_p_value(observed: &[f64], expected: &[f64]) -> f64 {
         .expect("positive degrees of freedom")
         .cdf(statistic)
 }
+
+/// A normal drawn from the isotropic Beckmann density p(m) = D(m)·cos θ: tan²θ = −α²·ln(1 − u₀),
+/// φ = 2π·u₁ (the standard inversion of the distribution's CDF in θ).
+#[must_use]
+pub fn sample_beckmann(alpha: f64, u0: f64, u1: f64) -> DVec3 {
+    let tan2 = -alpha * alpha * (1.0 - u0).ln();
+    let cos_theta = 1.0 / (1.0 + tan2).sqrt();
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = 2.0 * std::f64::consts::PI * u1;
+    DVec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+}
+
+/// A query "near the highlight": ω_i within 60° of the normal, a facet normal m drawn from
+/// p(m), and ω_o the mirror reflection of ω_i about m (retried until above the horizon), with
+/// a square footprint of side `side` at a random position.
+#[must_use]
+pub fn highlight_query(
+    alpha: f64,
+    gamma: f64,
+    side: f64,
+    rng: &mut SplitMix64,
+) -> (Footprint, SphericalConic) {
+    loop {
+        let cos_i = 0.5 + 0.5 * rng.uniform();
+        let phi = 2.0 * std::f64::consts::PI * rng.uniform();
+        let sin_i = (1.0 - cos_i * cos_i).sqrt();
+        let wi = DVec3::new(sin_i * phi.cos(), sin_i * phi.sin(), cos_i);
+        let m = sample_beckmann(alpha, rng.uniform(), rng.uniform());
+        let wo = 2.0 * wi.dot(m) * m - wi;
+        if wo.z <= 1e-3 || wi.dot(m) <= 0.0 {
+            continue;
+        }
+        let uv = DVec2::new(rng.uniform(), rng.uniform());
+        let footprint =
+            Footprint::new(uv, DVec2::new(side, 0.0), DVec2::new(0.0, side)).expect("finite");
+        let conic = SphericalConic::new(wi, wo, gamma).expect("valid conic");
+        return (footprint, conic);
+    }
+}

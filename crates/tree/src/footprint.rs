@@ -161,6 +161,11 @@ impl Footprint {
     #[must_use]
     pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {
         let max = min + DVec2::splat(size);
+        let columns = (self.max.x - min.x).floor() - (self.min.x - max.x).ceil() + 1.0;
+        let rows = (self.max.y - min.y).floor() - (self.min.y - max.y).ceil() + 1.0;
+        if columns * rows <= 4.0 {
+            return self.overlap_box_by_translates(min, size);
+        }
         let (mut inside, mut touching) = (0u64, 0u64);
         for j in self.rows_for(min.y, max.y) {
             let (y0, y1) = (min.y + j as f64, max.y + j as f64);
@@ -186,6 +191,43 @@ impl Footprint {
             inside,
             partial: touching.saturating_sub(inside),
         }
+    }
+
+    /// [`Footprint::overlap_box`] for the common case of a few candidate translates: each is
+    /// classified by the separating-axis test in the footprint's (s, t) parameters (the box's
+    /// extent along s and t from its corner and edge images) and along x and y.
+    fn overlap_box_by_translates(&self, min: DVec2, size: f64) -> BoxOverlap {
+        let max = min + DVec2::splat(size);
+        let m = &self.to_parameters;
+        let edge_x = m.x_axis * size;
+        let edge_y = m.y_axis * size;
+        let spread_lo = edge_x.min(DVec2::ZERO) + edge_y.min(DVec2::ZERO);
+        let spread_hi = edge_x.max(DVec2::ZERO) + edge_y.max(DVec2::ZERO);
+        let (i0, i1) = (
+            (self.min.x - max.x).ceil() as i64,
+            (self.max.x - min.x).floor() as i64,
+        );
+        let (j0, j1) = (
+            (self.min.y - max.y).ceil() as i64,
+            (self.max.y - min.y).floor() as i64,
+        );
+        let mut overlap = BoxOverlap {
+            inside: 0,
+            partial: 0,
+        };
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let corner = min + DVec2::new(i as f64, j as f64);
+                let st = *m * (corner - self.center);
+                let (lo, hi) = (st + spread_lo, st + spread_hi);
+                if lo.x >= -0.5 && hi.x <= 0.5 && lo.y >= -0.5 && hi.y <= 0.5 {
+                    overlap.inside += 1;
+                } else if !(lo.x > 0.5 || hi.x < -0.5 || lo.y > 0.5 || hi.y < -0.5) {
+                    overlap.partial += 1;
+                }
+            }
+        }
+        overlap
     }
 
     /// The number of integer translates x + (i, j) inside the footprint: the multiplicity m(x).

@@ -210,6 +210,18 @@ impl NdfQuadrature {
     #[inline]
     #[must_use]
     pub fn integral(&self, cell: &DirectionalCell, density: &NormalDensity) -> f64 {
+        self.integral_with_solid_angle(cell, cell.solid_angle(), density)
+    }
+
+    /// [`NdfQuadrature::integral`] for a cell whose solid angle the caller already has.
+    #[inline]
+    #[must_use]
+    pub fn integral_with_solid_angle(
+        &self,
+        cell: &DirectionalCell,
+        solid_angle: f64,
+        density: &NormalDensity,
+    ) -> f64 {
         match &cell.triangle {
             None => self.hemisphere_integral,
             Some(triangle) => {
@@ -218,8 +230,35 @@ impl NdfQuadrature {
                 {
                     return value;
                 }
-                triangle.solid_angle() * density(triangle.centroid())
+                let centre = triangle.centroid();
+                if centre.z > 0.0 {
+                    solid_angle * density(centre)
+                } else {
+                    0.0
+                }
             }
+        }
+    }
+
+    /// The probabilities of a directional split into `children` (with solid angles
+    /// `solid_angles`): their integrals, renormalized to sum to 1 (Sec. 3.4). Where p vanishes
+    /// on all four, the split follows solid angle, so that particles still land somewhere.
+    #[must_use]
+    pub fn split_probabilities(
+        &self,
+        children: &[DirectionalCell; 4],
+        solid_angles: &[f64; 4],
+        density: &NormalDensity,
+    ) -> [f64; 4] {
+        let integrals: [f64; 4] = std::array::from_fn(|j| {
+            self.integral_with_solid_angle(&children[j], solid_angles[j], density)
+        });
+        let total: f64 = integrals.iter().sum();
+        if total > 0.0 && total.is_finite() {
+            integrals.map(|i| i / total)
+        } else {
+            let sum: f64 = solid_angles.iter().sum();
+            solid_angles.map(|o| o / sum)
         }
     }
 

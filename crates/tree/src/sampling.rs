@@ -24,7 +24,7 @@ use crate::tea::TeaRng;
 /// How a node's particles are divided among its four children.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum MultinomialMode {
-    /// Exact multinomial sampling (categorical for n ≤ 8, conditional exact binomials above).
+    /// Exact multinomial sampling (categorical for n ≤ 4, conditional exact binomials above).
     #[default]
     Exact,
     /// The paper's normal approximation for n > 8 (exact categorical draws below).
@@ -182,41 +182,43 @@ fn binomial_btrd(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
 
 /// Splits `n` particles among four children with probabilities `p` (non-negative, summing to
 /// 1 up to rounding). The result always sums to `n`.
+///
+/// Both modes draw n ≤ 4 particles one by one from a single 4-lane TEA call, and n ≤ 8 as
+/// exact conditional binomials (by inversion: one uniform each); above 8 the mode decides.
 pub fn multinomial4(n: u64, p: [f64; 4], mode: MultinomialMode, rng: &mut TeaRng) -> [u64; 4] {
-    if n <= 8 {
-        return categorical_counts(n, p, rng);
+    if n <= 4 {
+        let uniforms = rng.uniform_x4();
+        let mut counts = [0u64; 4];
+        for &u in uniforms.iter().take(n as usize) {
+            counts[categorical(p, u)] += 1;
+        }
+        return counts;
     }
     match mode {
-        MultinomialMode::Exact => {
-            let mut counts = [0u64; 4];
-            let mut remaining = n;
-            for i in 0..3 {
-                if remaining == 0 {
-                    break;
-                }
-                // The remaining probability as a sum (not 1 − Σ), so it stays exact.
-                let rest: f64 = p[i..].iter().sum();
-                let conditional = if rest > 0.0 {
-                    (p[i] / rest).min(1.0)
-                } else {
-                    0.0
-                };
-                counts[i] = binomial(remaining, conditional, rng);
-                remaining -= counts[i];
-            }
-            counts[3] = remaining;
-            counts
-        }
-        MultinomialMode::Normal => multinomial4_normal(n, p, rng),
+        MultinomialMode::Normal if n > 8 => multinomial4_normal(n, p, rng),
+        _ => multinomial4_conditional(n, p, rng),
     }
 }
 
-/// n categorical draws, counted.
-fn categorical_counts(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 4] {
+/// Exact: X₀ ~ Bin(n, p₀), X₁ ~ Bin(n − X₀, p₁/(p₁+p₂+p₃)), X₂ likewise, X₃ the rest.
+fn multinomial4_conditional(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 4] {
     let mut counts = [0u64; 4];
-    for _ in 0..n {
-        counts[categorical(p, rng.uniform())] += 1;
+    let mut remaining = n;
+    for i in 0..3 {
+        if remaining == 0 {
+            break;
+        }
+        // The remaining probability as a sum (not 1 − Σ), so it stays exact.
+        let rest: f64 = p[i..].iter().sum();
+        let conditional = if rest > 0.0 {
+            (p[i] / rest).min(1.0)
+        } else {
+            0.0
+        };
+        counts[i] = binomial(remaining, conditional, rng);
+        remaining -= counts[i];
     }
+    counts[3] = remaining;
     counts
 }
 

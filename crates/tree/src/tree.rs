@@ -11,10 +11,11 @@
 //! ```
 //!
 //! The children's counts are a multinomial draw from the node's own TEA stream, keyed by the
-//! material seed and the node's identity. A node with at most [`LEAF_PARTICLES`] particles on
-//! which p is near-uniform (no quadrature table entry), or at the depth guard, is a *leaf*: its
-//! particles are placed explicitly, each from its own stream, uniformly in the box and (in
-//! solid angle) in the triangle. Nothing here looks at a query, so every query sees the same
+//! material seed and the node's identity. A node with at most [`LEAF_PARTICLES`] particles, or
+//! at the depth guard, is a *leaf*: its particles are placed explicitly, each from its own
+//! stream, uniformly in the box and, in direction, by the same law the splits follow (one
+//! particle descends the directional hierarchy with the split probabilities, then lands
+//! uniformly in a small near-uniform triangle). Nothing here looks at a query, so every query sees the same
 //! particles: overlapping queries agree on their overlap, and repeated queries are
 //! bit-identical in any thread and order.
 //!
@@ -34,9 +35,7 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 
 use glam::{DVec2, DVec3};
-use glint_sphere::{
-    Classification, OverlapMethod, SphericalConic, SphericalTriangle, overlap_solid_angle,
-};
+use glint_sphere::{Classification, OverlapMethod, SphericalConic, overlap_solid_angle};
 
 use crate::error::TreeError;
 use crate::footprint::{BoxOverlap, Footprint};
@@ -45,8 +44,8 @@ use crate::node::NodeId;
 use crate::sampling::{MultinomialMode, dirichlet4, exponential, multinomial4};
 use crate::tea::{DEFAULT_ROUNDS, TeaRng};
 
-/// Nodes with at most this many particles on a near-uniform cell place them explicitly.
-pub const LEAF_PARTICLES: u64 = 4;
+/// Nodes with at most this many particles place them explicitly (leaves).
+pub const LEAF_PARTICLES: u64 = 8;
 
 /// At the depth guard, nodes with more particles than this add their expected share instead of
 /// being placed one by one (only degenerate queries get there).
@@ -155,6 +154,15 @@ struct Node {
     areas: [f64; 3],
 }
 
+impl Node {
+    /// The box's side, 2^−level (exact: a power of two built from its exponent bits).
+    #[inline]
+    fn box_size(&self) -> f64 {
+        debug_assert!(self.box_level < 1000);
+        f64::from_bits((1023 - u64::from(self.box_level)) << 52)
+    }
+}
+
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate.
 #[derive(Debug, Default)]
 pub struct QueryScratch {
@@ -256,30 +264,24 @@ impl CountTree {
 
     /// Eq. 11: whether `node` splits in space (else in direction).
     fn splits_in_space(&self, node: &Node) -> bool {
-        let box_area = 0.25_f64.powi(node.box_level as i32);
+        let box_area = node.box_size() * node.box_size();
         self.config.expected_query_area * node.solid_angle
             < self.config.expected_query_solid_angle * box_area
     }
 
-    /// The four children of `node`, with counts drawn from its stream.
-    fn split(&self, node: &Node) -> [Node; 4] {
+    /// Queues the non-empty children of `node`, with counts drawn from its stream. Empty
+    /// children hold nothing for any query, so they are never queued.
+    fn split_into(&self, node: &Node, queue: &mut VecDeque<Node>) {
         let spatial = self.splits_in_space(node);
-        let (cells, probabilities) = if spatial {
-            ([node.cell; 4], [0.25; 4])
+        let (cells, solid_angles, probabilities) = if spatial {
+            ([node.cell; 4], [node.solid_angle; 4], [0.25; 4])
         } else {
             let cells = node.cell.children();
-            let integrals = cells.map(|c| self.quadrature.integral(&c, self.density.as_ref()));
-            let total: f64 = integrals.iter().sum();
-            let probabilities = if total > 0.0 {
-                integrals.map(|i| i / total)
-            } else {
-                // p vanishes on the whole node (it holds no particles in expectation): split
-                // by solid angle so that any particles there still land somewhere.
-                let omega = cells.map(|c| c.solid_angle());
-                let sum: f64 = omega.iter().sum();
-                omega.map(|o| o / sum)
-            };
-            (cells, probabilities)
+            let solid_angles = cells.map(|c| c.solid_angle());
+            let probabilities =
+                self.quadrature
+                    .split_probabilities(&cells, &solid_angles, self.density.as_ref());
+            (cells, solid_angles, probabilities)
         };
         let mut rng = self.stream(node.id, PURPOSE_SPLIT);
         let counts = multinomial4(node.count, probabilities, self.config.multinomial, &mut rng);
@@ -291,25 +293,28 @@ impl CountTree {
                 child_areas[channel] = node.areas[channel] * part;
             }
         }
-        let half = 0.5_f64.powi(node.box_level as i32 + 1);
-        [0, 1, 2, 3].map(|j| {
-            let (box_min, box_level, solid_angle) = if spatial {
+        let half = 0.5 * node.box_size();
+        for j in 0..4 {
+            if counts[j] == 0 {
+                continue;
+            }
+            let (box_min, box_level) = if spatial {
                 let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
-                (node.box_min + offset, node.box_level + 1, node.solid_angle)
+                (node.box_min + offset, node.box_level + 1)
             } else {
-                (node.box_min, node.box_level, cells[j].solid_angle())
+                (node.box_min, node.box_level)
             };
-            Node {
+            queue.push_back(Node {
                 id: node.id.child(j),
                 count: counts[j],
                 box_min,
                 box_level,
                 cell: cells[j],
-                solid_angle,
+                solid_angle: solid_angles[j],
                 depth: node.depth + 1,
                 areas: areas[j],
-            }
-        })
+            });
+        }
     }
 
     /// Counts the particles in `footprint` × `conic` (Alg. 1). The result is finite, ≥ 0 and
@@ -344,7 +349,7 @@ impl CountTree {
             if node.count == 0 {
                 continue;
             }
-            let box_size = 0.5_f64.powi(node.box_level as i32);
+            let box_size = node.box_size();
             let spatial = footprint.overlap_box(node.box_min, box_size);
             if spatial.inside == 0 && spatial.partial == 0 {
                 continue;
@@ -366,7 +371,7 @@ impl CountTree {
             let near_uniform = !self.quadrature.has_entry(&node.cell);
             // Eq. 10 assumes the node's particles uniform over the part of it that the query
             // cuts: always true in space, in direction only where p is near-uniform.
-            if self.config.epsilon > 0.0 && (near_uniform || directions_inside) {
+            if self.config.epsilon > 0.0 && count > 0.0 && (near_uniform || directions_inside) {
                 let share = self.overlap_share(&node, footprint, conic, spatial, directions_inside);
                 if share.deviation(node.count) < self.config.epsilon * count {
                     count += node.count as f64 * share.mean;
@@ -392,7 +397,7 @@ impl CountTree {
                 accumulate(&mut area_sums, areas, 1.0);
                 continue;
             }
-            queue.extend(self.split(&node));
+            self.split_into(&node, queue);
         }
         self.result(count, area_sums, visited, truncated)
     }
@@ -426,7 +431,7 @@ impl CountTree {
         spatial: BoxOverlap,
         directions_inside: bool,
     ) -> OverlapShare {
-        let box_size = 0.5_f64.powi(node.box_level as i32);
+        let box_size = node.box_size();
         let multiplicity = if spatial.partial == 0 {
             spatial.inside as f64
         } else {
@@ -469,7 +474,7 @@ impl CountTree {
         footprint: &Footprint,
         conic: &SphericalConic,
     ) -> (f64, [f64; 3]) {
-        let box_size = 0.5_f64.powi(node.box_level as i32);
+        let box_size = node.box_size();
         let mut found = 0.0;
         let mut areas = [0.0; 3];
         let channels = self.config.colour_channels;
@@ -496,7 +501,7 @@ impl CountTree {
             if multiplicity == 0 {
                 continue;
             }
-            let direction = sample_direction(&node.cell, &mut rng);
+            let direction = self.sample_direction(&node.cell, &mut rng);
             if !conic.contains(direction) {
                 continue;
             }
@@ -560,31 +565,40 @@ fn accumulate(sums: &mut [f64; 3], areas: [f64; 3], factor: f64) {
     }
 }
 
-/// A direction uniform in solid angle over the cell: descend by solid-angle-weighted choices
-/// until the triangle's longest edge is below 0.01 rad, then sample the flat triangle uniformly
-/// and project (the projection's non-uniformity there is below 1e-4 relative).
-fn sample_direction(cell: &DirectionalCell, rng: &mut TeaRng) -> DVec3 {
-    let mut triangle = match &cell.triangle {
-        Some(t) => *t,
-        None => {
-            SphericalTriangle::upper_hemisphere_octants()[((rng.uniform() * 4.0) as usize).min(3)]
-        }
-    };
-    while triangle.longest_edge() > 0.01 {
-        let children = triangle.subdivide();
-        let weights = children.map(|c| c.solid_angle());
-        let mut u = rng.uniform() * weights.iter().sum::<f64>();
-        let mut chosen = 3;
-        for (j, w) in weights.iter().enumerate() {
-            if u < *w {
-                chosen = j;
-                break;
+/// The directional law of the tree below a leaf, for one particle: descend the directional
+/// hierarchy with the split probabilities of [`NdfQuadrature::split_probabilities`] (the law
+/// of the multinomial splits, one particle at a time) until the cell has no table entry and
+/// its longest edge is below 0.01 rad, then sample the flat triangle uniformly and project
+/// (the projection's non-uniformity there is below 1e-4 relative).
+impl CountTree {
+    fn sample_direction(&self, cell: &DirectionalCell, rng: &mut TeaRng) -> DVec3 {
+        let mut cell = *cell;
+        loop {
+            if let Some(triangle) = &cell.triangle
+                && triangle.longest_edge() <= 0.01
+                && !self.quadrature.has_entry(&cell)
+            {
+                let root = rng.uniform().sqrt();
+                let v = rng.uniform();
+                return triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
             }
-            u -= w;
+            let children = cell.children();
+            let solid_angles = children.map(|c| c.solid_angle());
+            let probabilities = self.quadrature.split_probabilities(
+                &children,
+                &solid_angles,
+                self.density.as_ref(),
+            );
+            let mut u = rng.uniform();
+            let mut chosen = 3;
+            for (j, p) in probabilities.iter().enumerate() {
+                if u < *p {
+                    chosen = j;
+                    break;
+                }
+                u -= p;
+            }
+            cell = children[chosen];
         }
-        triangle = children[chosen];
     }
-    let root = rng.uniform().sqrt();
-    let v = rng.uniform();
-    triangle.direction_at([1.0 - root, root * (1.0 - v), root * v])
 }

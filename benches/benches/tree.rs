@@ -1,0 +1,63 @@
+//! Per-query costs of glint-tree at the paper's Table 1 settings (ε = 0.1, pixel footprints,
+//! directions near the highlight), plus TEA and the multinomial split.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use glint_benches::{TABLE1, table1_workload};
+use glint_tree::sampling::{MultinomialMode, multinomial4};
+use glint_tree::tea::{DEFAULT_ROUNDS, TeaRng, encrypt, encrypt_x4};
+use glint_tree::{MultinomialMode as Mode, QueryScratch};
+use std::hint::black_box;
+
+const POOL: usize = 1024;
+
+fn tree(c: &mut Criterion) {
+    let mut group = c.benchmark_group("tree");
+    for setting in &TABLE1 {
+        let (tree, queries) = table1_workload(setting, POOL, 1);
+        let mut scratch = QueryScratch::new();
+        let mut i = 0;
+        group.bench_function(format!("query_{}", setting.name), |b| {
+            b.iter(|| {
+                i = (i + 1) % POOL;
+                let (footprint, conic) = &queries[i];
+                tree.query(black_box(footprint), conic, &mut scratch)
+            })
+        });
+    }
+    let key = [1, 2, 3, 4];
+    let mut counter = 0u32;
+    group.bench_function("tea_scalar_8_rounds", |b| {
+        b.iter(|| {
+            counter = counter.wrapping_add(1);
+            encrypt(black_box(counter), 0, key, DEFAULT_ROUNDS)
+        })
+    });
+    group.bench_function("tea_x4_8_rounds", |b| {
+        b.iter(|| {
+            counter = counter.wrapping_add(4);
+            let v = wide::u32x4::splat(black_box(counter));
+            encrypt_x4(v, wide::u32x4::ZERO, key, DEFAULT_ROUNDS)
+        })
+    });
+    for (name, mode) in [("exact", Mode::Exact), ("normal", Mode::Normal)] {
+        for n in [5u64, 1000, 1_000_000_000] {
+            let mut k = 0u32;
+            group.bench_function(format!("multinomial_{name}_n{n}"), |b| {
+                b.iter(|| {
+                    k = k.wrapping_add(1);
+                    let mut rng = TeaRng::new([k, 2, 3, 4], 0, DEFAULT_ROUNDS);
+                    multinomial4(
+                        black_box(n),
+                        [0.1, 0.2, 0.3, 0.4],
+                        mode as MultinomialMode,
+                        &mut rng,
+                    )
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, tree);
+criterion_main!(benches);
