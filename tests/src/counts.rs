@@ -79,6 +79,23 @@ pub fn counts_over_footprints(
         .collect()
 }
 
+/// Standard errors of the mean count and of the dispersion index (variance/mean) measured
+/// over `queries` random footprint positions of area `area` on one particle set, when the
+/// expected count is `expected` and a particle's chance to be seen is `q`.
+///
+/// Two sources add up: sampling positions (E(1−q)/queries for the mean, 2/queries for the
+/// dispersion) and the realization itself, which the positions only resample: the texture
+/// holds about 1/A independent footprints, so the set's own mean deviates by Var = N q(1−q)·A
+/// ≈ E·A, and its own variance, as that of a Poisson field over 1/A cells, by a relative
+/// (2 + 1/E)·A.
+#[must_use]
+pub fn count_moment_errors(expected: f64, q: f64, area: f64, queries: usize) -> (f64, f64) {
+    let n = queries as f64;
+    let mean_error = (expected * (1.0 - q) / n + expected * area).sqrt();
+    let dispersion_error = (2.0 / n + (2.0 + 1.0 / expected.max(1e-12)) * area).sqrt();
+    (mean_error, dispersion_error)
+}
+
 /// Mean and variance of a sample.
 #[must_use]
 pub fn mean_and_variance(values: &[f64]) -> (f64, f64) {

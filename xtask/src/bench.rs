@@ -6,8 +6,8 @@ use std::process::Command;
 
 use anyhow::{Context, bail};
 
-/// The benchmarks the summary reports, with what each measures.
-const BENCHMARKS: [(&str, &str); 7] = [
+/// The geometry benchmarks the summary reports, with what each measures.
+const SPHERE_BENCHMARKS: [(&str, &str); 7] = [
     (
         "conic_new",
         "SphericalConic::new (frame, λ1, λ2; one sin/cos)",
@@ -29,6 +29,36 @@ const BENCHMARKS: [(&str, &str); 7] = [
     ),
 ];
 
+/// The tree's primitive benchmarks.
+const TREE_BENCHMARKS: [(&str, &str); 8] = [
+    ("tea_scalar_8_rounds", "TEA, one 64-bit block, 8 cycles"),
+    (
+        "tea_x4_8_rounds",
+        "TEA, four blocks in one wide::u32x4 call",
+    ),
+    ("multinomial_exact_n5", "4-way split, exact, n = 5"),
+    ("multinomial_exact_n1000", "4-way split, exact, n = 1000"),
+    (
+        "multinomial_exact_n1000000000",
+        "4-way split, exact, n = 10⁹",
+    ),
+    (
+        "multinomial_normal_n5",
+        "4-way split, normal mode, n = 5 (exact there)",
+    ),
+    (
+        "multinomial_normal_n1000",
+        "4-way split, normal approximation, n = 1000",
+    ),
+    (
+        "multinomial_normal_n1000000000",
+        "4-way split, normal approximation, n = 10⁹",
+    ),
+];
+
+/// Queries per setting for the Table 1 node and particle statistics.
+const TABLE1_QUERIES: usize = 4096;
+
 fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -42,7 +72,7 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
     let mut command = Command::new(cargo);
     command
         .current_dir(&root)
-        .args(["bench", "-p", "glint-benches", "--bench", "sphere", "--"]);
+        .args(["bench", "-p", "glint-benches", "--"]);
     if quick {
         command.args(["--warm-up-time", "1", "--measurement-time", "2"]);
     }
@@ -52,17 +82,54 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
     }
     let target =
         std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root.join("target"), PathBuf::from);
-    let mut table = String::from("| benchmark | what | median per call |\n|---|---|---|\n");
-    for (name, what) in BENCHMARKS {
+    let median = |group: &str, name: &str| -> anyhow::Result<f64> {
         let path = target
-            .join("criterion/sphere")
+            .join("criterion")
+            .join(group)
             .join(name)
             .join("new/estimates.json");
         let json = std::fs::read_to_string(&path)
             .with_context(|| format!("reading {}", path.display()))?;
-        let median_ns = median_point_estimate(&json)
-            .with_context(|| format!("no median in {}", path.display()))?;
-        writeln!(table, "| sphere/{name} | {what} | {median_ns:.1} ns |")?;
+        median_point_estimate(&json).with_context(|| format!("no median in {}", path.display()))
+    };
+    let mut table = String::from(
+        "## Geometry (glint-sphere)\n\n| benchmark | what | median per call |\n|---|---|---|\n",
+    );
+    for (name, what) in SPHERE_BENCHMARKS {
+        writeln!(
+            table,
+            "| sphere/{name} | {what} | {:.1} ns |",
+            median("sphere", name)?
+        )?;
+    }
+    table.push_str("\n## Count tree primitives (glint-tree)\n\n| benchmark | what | median per call |\n|---|---|---|\n");
+    for (name, what) in TREE_BENCHMARKS {
+        writeln!(
+            table,
+            "| tree/{name} | {what} | {:.1} ns |",
+            median("tree", name)?
+        )?;
+    }
+    writeln!(
+        table,
+        "\n## Table 1 settings (Beckmann, ε = 0.1, exact multinomials, footprint side 10⁻³, \
+         directions near the highlight; {TABLE1_QUERIES} queries for the means)\n\n\
+         | setting | N | γ | α | mean nodes visited | mean particles found | median per query | per visited node |\n\
+         |---|---|---|---|---|---|---|---|"
+    )?;
+    for setting in &glint_benches::TABLE1 {
+        let (nodes, particles) = glint_benches::table1_statistics(setting, TABLE1_QUERIES, 1);
+        let per_query = median("tree", &format!("query_{}", setting.name))?;
+        writeln!(
+            table,
+            "| {} | {:.0e} | {}° | {} | {nodes:.1} | {particles:.2} | {:.1} µs | {:.0} ns |",
+            setting.name,
+            setting.particles as f64,
+            setting.gamma_degrees,
+            setting.alpha,
+            per_query / 1000.0,
+            per_query / nodes
+        )?;
     }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("summary.md");

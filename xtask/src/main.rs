@@ -7,6 +7,7 @@
 
 mod bench;
 mod validate;
+mod validate_counts;
 
 use clap::{Parser, Subcommand};
 

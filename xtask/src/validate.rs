@@ -1,6 +1,7 @@
 //! `cargo xtask validate`: the model against its definitions, at full size.
 //!
-//! Suites so far: **geometry** (glint-sphere). Each check prints one line and adds a section to
+//! Suites so far: **geometry** (glint-sphere) and **counts** (glint-tree, in
+//! `validate_counts.rs`). Each check prints one line and adds a section to
 //! `report.md`; the command fails if any check fails.
 
 use std::fmt::Write as _;
@@ -50,10 +51,10 @@ impl Sizes {
 }
 
 /// One check's outcome.
-struct Check {
-    name: &'static str,
-    passed: bool,
-    summary: String,
+pub(crate) struct Check {
+    pub(crate) name: &'static str,
+    pub(crate) passed: bool,
+    pub(crate) summary: String,
 }
 
 pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
@@ -62,7 +63,7 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
     let mut report = String::new();
     writeln!(
         report,
-        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere).\n",
+        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree).\n",
         if quick { "quick" } else { "full" }
     )?;
     let checks = [
@@ -70,6 +71,10 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
         classification(&sizes, &mut report)?,
         overlap_against_monte_carlo(&sizes, &mut report)?,
         planar_error_by_size(&sizes, &mut report)?,
+        crate::validate_counts::binomial_moments(quick, &mut report)?,
+        crate::validate_counts::multinomial_splits(quick, &mut report)?,
+        crate::validate_counts::additivity_and_determinism(quick, &mut report)?,
+        crate::validate_counts::coherence(quick, &mut report)?,
     ];
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("report.md");
@@ -98,7 +103,11 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
 
 /// Splits `total` work items into chunks run on all cores; each chunk gets its own seeded
 /// stream, so results do not depend on the thread count.
-fn parallel_chunks<T: Send>(total: u64, chunk: u64, work: impl Fn(u64, u64) -> T + Sync) -> Vec<T> {
+pub(crate) fn parallel_chunks<T: Send>(
+    total: u64,
+    chunk: u64,
+    work: impl Fn(u64, u64) -> T + Sync,
+) -> Vec<T> {
     let chunks = total.div_ceil(chunk);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
     let mut results: Vec<(u64, T)> = std::thread::scope(|scope| {

@@ -73,12 +73,20 @@ impl SphericalTriangle {
     /// The solid angle (steradians), by the formula of Van Oosterom and Strackee,
     /// tan(Ω/2) = a·(b×c) / (1 + a·b + b·c + c·a),
     /// with the triple product evaluated on edge vectors, a·((b−a)×(c−a)), so that it keeps full
-    /// relative precision for triangles with edges of 1e-5 rad and below.
+    /// relative precision for triangles with edges of 1e-5 rad and below; small triangles use
+    /// the arctangent's series (exact in f64 there) instead of `atan2`.
     #[must_use]
     pub fn solid_angle(&self) -> f64 {
         let [a, b, c] = self.vertices;
         let triple = a.dot((b - a).cross(c - a));
         let denominator = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
+        // Small triangles (the count tree's usual case): atan t = t − t³/3 + t⁵/5 − …, whose
+        // next term is below 1.5e-19·t for t < 1e-3, so three terms are exact in f64.
+        if triple >= 0.0 && triple < 1e-3 * denominator {
+            let t = triple / denominator;
+            let t2 = t * t;
+            return 2.0 * t * (1.0 - t2 * (1.0 / 3.0 - t2 * (1.0 / 5.0)));
+        }
         2.0 * triple.atan2(denominator)
     }
 

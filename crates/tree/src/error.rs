@@ -30,6 +30,11 @@ pub enum TreeError {
     },
     /// TEA needs at least one cycle.
     InvalidRounds,
+    /// The top-level cache may hold at most 8 levels.
+    TooManyCachedLevels {
+        /// The rejected value.
+        levels: u32,
+    },
 }
 
 impl fmt::Display for TreeError {
@@ -63,6 +68,9 @@ impl fmt::Display for TreeError {
                 write!(f, "{channels} colour channels requested: use 0 (none) to 3")
             }
             Self::InvalidRounds => write!(f, "TEA needs at least one round"),
+            Self::TooManyCachedLevels { levels } => {
+                write!(f, "{levels} cached levels requested: use 0 to 8")
+            }
         }
     }
 }

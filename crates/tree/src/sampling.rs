@@ -24,7 +24,7 @@ use crate::tea::TeaRng;
 /// How a node's particles are divided among its four children.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum MultinomialMode {
-    /// Exact multinomial sampling (categorical for n ≤ 4, conditional exact binomials above).
+    /// Exact multinomial sampling (categorical for n ≤ 8, conditional exact binomials above).
     #[default]
     Exact,
     /// The paper's normal approximation for n > 8 (exact categorical draws below).
@@ -183,20 +183,25 @@ fn binomial_btrd(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
 /// Splits `n` particles among four children with probabilities `p` (non-negative, summing to
 /// 1 up to rounding). The result always sums to `n`.
 ///
-/// Both modes draw n ≤ 4 particles one by one from a single 4-lane TEA call, and n ≤ 8 as
-/// exact conditional binomials (by inversion: one uniform each); above 8 the mode decides.
+/// Both modes draw n ≤ 8 particles one by one (categorical draws, four uniforms per 4-lane TEA
+/// call), as the paper does; above 8 the mode decides.
 pub fn multinomial4(n: u64, p: [f64; 4], mode: MultinomialMode, rng: &mut TeaRng) -> [u64; 4] {
-    if n <= 4 {
-        let uniforms = rng.uniform_x4();
+    if n <= 8 {
+        // One categorical draw per particle, four uniforms per 4-lane TEA call.
         let mut counts = [0u64; 4];
-        for &u in uniforms.iter().take(n as usize) {
-            counts[categorical(p, u)] += 1;
+        let mut remaining = n as usize;
+        while remaining > 0 {
+            let uniforms = rng.uniform_x4();
+            for &u in uniforms.iter().take(remaining) {
+                counts[categorical(p, u)] += 1;
+            }
+            remaining = remaining.saturating_sub(4);
         }
         return counts;
     }
     match mode {
-        MultinomialMode::Normal if n > 8 => multinomial4_normal(n, p, rng),
-        _ => multinomial4_conditional(n, p, rng),
+        MultinomialMode::Normal => multinomial4_normal(n, p, rng),
+        MultinomialMode::Exact => multinomial4_conditional(n, p, rng),
     }
 }
 

@@ -56,6 +56,9 @@ const PURPOSE_SPLIT: u32 = 0;
 const PURPOSE_AREA: u32 = 1; // + channel
 const PURPOSE_LEAF: u32 = 16; // + particle index
 
+/// The deepest top-level cache allowed (4⁸ entries of four nodes, ~70 MB).
+pub const MAX_CACHED_LEVELS: u32 = 8;
+
 /// The largest particle count (exact binomial sampling needs n ≤ 2⁵³).
 pub const MAX_PARTICLES: u64 = 1 << 53;
 
@@ -82,6 +85,9 @@ pub struct CountTreeConfig {
     pub tea_rounds: u32,
     /// The depth guard: the deepest node a query visits.
     pub max_depth: u32,
+    /// Depths whose splits are computed once when the tree is built (0 to 8; default 6, about
+    /// 1 MB): every query passes through the top of the tree.
+    pub cached_levels: u32,
     /// The work guard: after this many nodes, a query adds the expected share of every partial
     /// node still queued instead of splitting it ([`QueryResult::truncated`] tells). Exact
     /// evaluation of huge counts (N = 10¹⁵ over a whole tile) would otherwise resolve every
@@ -95,7 +101,7 @@ pub struct CountTreeConfig {
 impl Default for CountTreeConfig {
     /// N = 10⁶, seed 0, ε = 0.1, exact multinomials, planar overlaps, a footprint of 10⁻⁶
     /// (a pixel of ~1000² over the texture) and the conic of γ = 1° at normal incidence,
-    /// δ = 1e-5, 8 TEA cycles, depth guard 64, node budget 10⁶, no colour.
+    /// δ = 1e-5, 8 TEA cycles, depth guard 64, 6 cached levels, node budget 10⁶, no colour.
     fn default() -> Self {
         let gamma = 1f64.to_radians();
         Self {
@@ -109,6 +115,7 @@ impl Default for CountTreeConfig {
             quadrature: QuadratureTolerance::default(),
             tea_rounds: DEFAULT_ROUNDS,
             max_depth: 64,
+            cached_levels: 6,
             node_budget: 1_000_000,
             colour_channels: 0,
         }
@@ -128,6 +135,34 @@ pub struct CountTree {
     config: CountTreeConfig,
     quadrature: NdfQuadrature,
     density: Arc<NormalDensity>,
+    top_levels: TopLevels,
+}
+
+/// The children of every node above depth [`CountTreeConfig::cached_levels`], computed once:
+/// every query starts at the root and would otherwise redraw the same top splits (the large-n
+/// multinomials and the coarse cells' geometry). Indexed by depth, then by the node's label
+/// within its depth (labels of one depth are consecutive).
+#[derive(Clone, Debug, Default)]
+struct TopLevels {
+    levels: u32,
+    entries: Vec<([Node; 4], bool)>,
+}
+
+impl TopLevels {
+    /// The first label of depth d: (2·4ᵈ + 1)/3; depths before d hold (4ᵈ − 1)/3 nodes.
+    fn index(&self, node: &Node) -> Option<usize> {
+        if node.depth >= self.levels {
+            return None;
+        }
+        let power = 1u128 << (2 * node.depth);
+        let first_label = (2 * power + 1) / 3;
+        let before = (power - 1) / 3;
+        Some((before + node.id.0 - first_label) as usize)
+    }
+
+    fn get(&self, node: &Node) -> Option<&([Node; 4], bool)> {
+        self.index(node).and_then(|i| self.entries.get(i))
+    }
 }
 
 impl std::fmt::Debug for CountTree {
@@ -152,6 +187,10 @@ struct Node {
     depth: u32,
     /// The node's share of each channel's total particle area (1 at the root).
     areas: [f64; 3],
+    /// The query's answer for the dimension the parent's split left unchanged: children of a
+    /// spatial split share the parent's triangle, children of a directional split its box.
+    known_spatial: Option<BoxOverlap>,
+    known_directional: Option<Classification>,
 }
 
 impl Node {
@@ -238,12 +277,42 @@ impl CountTree {
         if config.tea_rounds == 0 {
             return Err(TreeError::InvalidRounds);
         }
+        if config.cached_levels > MAX_CACHED_LEVELS {
+            return Err(TreeError::TooManyCachedLevels {
+                levels: config.cached_levels,
+            });
+        }
         let quadrature = NdfQuadrature::build(density.as_ref(), config.quadrature)?;
-        Ok(Self {
+        let mut tree = Self {
             config,
             quadrature,
             density,
-        })
+            top_levels: TopLevels::default(),
+        };
+        tree.top_levels = tree.build_top_levels();
+        Ok(tree)
+    }
+
+    /// Breadth first, so that entries land in label order within each depth.
+    fn build_top_levels(&self) -> TopLevels {
+        let levels = self.config.cached_levels;
+        let mut entries = Vec::new();
+        let mut level = vec![self.root()];
+        for _ in 0..levels {
+            let mut next = Vec::with_capacity(4 * level.len());
+            for node in &level {
+                let mut children = [*node; 4];
+                let mut k = 0;
+                let spatial = self.emit_children(node, |child| {
+                    children[k] = child;
+                    k += 1;
+                });
+                next.extend_from_slice(&children);
+                entries.push((children, spatial));
+            }
+            level = next;
+        }
+        TopLevels { levels, entries }
     }
 
     /// The material parameters.
@@ -269,9 +338,10 @@ impl CountTree {
             < self.config.expected_query_solid_angle * box_area
     }
 
-    /// Queues the non-empty children of `node`, with counts drawn from its stream. Empty
-    /// children hold nothing for any query, so they are never queued.
-    fn split_into(&self, node: &Node, queue: &mut VecDeque<Node>) {
+    /// Hands the four children of `node` (counts drawn from its stream) to `emit`, in order,
+    /// and returns whether the split is spatial. A pure function of the node: the same
+    /// children in every query.
+    fn emit_children(&self, node: &Node, mut emit: impl FnMut(Node)) -> bool {
         let spatial = self.splits_in_space(node);
         let (cells, solid_angles, probabilities) = if spatial {
             ([node.cell; 4], [node.solid_angle; 4], [0.25; 4])
@@ -295,16 +365,13 @@ impl CountTree {
         }
         let half = 0.5 * node.box_size();
         for j in 0..4 {
-            if counts[j] == 0 {
-                continue;
-            }
             let (box_min, box_level) = if spatial {
                 let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
                 (node.box_min + offset, node.box_level + 1)
             } else {
                 (node.box_min, node.box_level)
             };
-            queue.push_back(Node {
+            emit(Node {
                 id: node.id.child(j),
                 count: counts[j],
                 box_min,
@@ -313,7 +380,56 @@ impl CountTree {
                 solid_angle: solid_angles[j],
                 depth: node.depth + 1,
                 areas: areas[j],
+                known_spatial: None,
+                known_directional: None,
             });
+        }
+        spatial
+    }
+
+    /// Queues the non-empty children of `node` (from the top-level cache when the node is in
+    /// it). Empty children hold nothing for any query, so they are never queued.
+    fn split_into(
+        &self,
+        node: &Node,
+        spatial_answer: BoxOverlap,
+        directional_answer: Classification,
+        queue: &mut VecDeque<Node>,
+    ) {
+        let known = |mut child: Node, spatial: bool| {
+            child.known_spatial = (!spatial).then_some(spatial_answer);
+            child.known_directional = spatial.then_some(directional_answer);
+            child
+        };
+        if let Some((children, spatial)) = self.top_levels.get(node) {
+            for child in children.iter().filter(|c| c.count > 0) {
+                queue.push_back(known(*child, *spatial));
+            }
+            return;
+        }
+        // Not cached: the split type is known before the children are, so emit straight into
+        // the queue.
+        let spatial = self.splits_in_space(node);
+        self.emit_children(node, |child| {
+            if child.count > 0 {
+                queue.push_back(known(child, spatial));
+            }
+        });
+    }
+
+    /// The root node.
+    fn root(&self) -> Node {
+        Node {
+            id: NodeId::ROOT,
+            count: self.config.particles,
+            box_min: DVec2::ZERO,
+            box_level: 0,
+            cell: DirectionalCell::HEMISPHERE,
+            solid_angle: DirectionalCell::HEMISPHERE.solid_angle(),
+            depth: 0,
+            areas: [1.0; 3],
+            known_spatial: None,
+            known_directional: None,
         }
     }
 
@@ -334,30 +450,25 @@ impl CountTree {
         }
         let queue = &mut scratch.queue;
         queue.clear();
-        queue.push_back(Node {
-            id: NodeId::ROOT,
-            count: self.config.particles,
-            box_min: DVec2::ZERO,
-            box_level: 0,
-            cell: DirectionalCell::HEMISPHERE,
-            solid_angle: DirectionalCell::HEMISPHERE.solid_angle(),
-            depth: 0,
-            areas: [1.0; 3],
-        });
+        queue.push_back(self.root());
         while let Some(node) = queue.pop_front() {
             visited += 1;
             if node.count == 0 {
                 continue;
             }
             let box_size = node.box_size();
-            let spatial = footprint.overlap_box(node.box_min, box_size);
+            let spatial = node
+                .known_spatial
+                .unwrap_or_else(|| footprint.overlap_box(node.box_min, box_size));
             if spatial.inside == 0 && spatial.partial == 0 {
                 continue;
             }
-            let directional = match &node.cell.triangle {
-                None => Classification::Partial,
-                Some(t) => conic.classify(t),
-            };
+            let directional = node
+                .known_directional
+                .unwrap_or_else(|| match &node.cell.triangle {
+                    None => Classification::Partial,
+                    Some(t) => conic.classify(t),
+                });
             if directional == Classification::Disjoint {
                 continue;
             }
@@ -397,7 +508,7 @@ impl CountTree {
                 accumulate(&mut area_sums, areas, 1.0);
                 continue;
             }
-            self.split_into(&node, queue);
+            self.split_into(&node, spatial, directional, queue);
         }
         self.result(count, area_sums, visited, truncated)
     }
