@@ -264,3 +264,45 @@ pub fn highlight_query(
         return (footprint, conic);
     }
 }
+
+/// Counts of `pairs` pairs of square footprints of side `side`, the second shifted along u so
+/// that the two overlap by the fraction `overlap`, at random positions.
+#[must_use]
+pub fn overlapping_pair_counts(
+    tree: &CountTree,
+    conic: &SphericalConic,
+    side: f64,
+    overlap: f64,
+    pairs: usize,
+    seed: u64,
+) -> (Vec<f64>, Vec<f64>) {
+    let mut rng = SplitMix64::new(seed);
+    let mut scratch = QueryScratch::new();
+    let square = |uv: DVec2| {
+        Footprint::new(uv, DVec2::new(side, 0.0), DVec2::new(0.0, side)).expect("finite")
+    };
+    (0..pairs)
+        .map(|_| {
+            let uv = DVec2::new(rng.uniform(), rng.uniform());
+            let shifted = uv + DVec2::new((1.0 - overlap) * side, 0.0);
+            (
+                tree.query(&square(uv), conic, &mut scratch).count,
+                tree.query(&square(shifted), conic, &mut scratch).count,
+            )
+        })
+        .unzip()
+}
+
+/// Pearson's correlation of two equally long samples.
+#[must_use]
+pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let (mean_a, var_a) = mean_and_variance(a);
+    let (mean_b, var_b) = mean_and_variance(b);
+    let covariance = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (x - mean_a) * (y - mean_b))
+        .sum::<f64>()
+        / (a.len() as f64 - 1.0);
+    covariance / (var_a * var_b).sqrt()
+}

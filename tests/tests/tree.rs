@@ -7,8 +7,8 @@ use glam::{DVec2, DVec3};
 use glint_sphere::SphericalConic;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{
-    beckmann_tree, conic_integral_by_sampling, count_moment_errors, counts_over_footprints,
-    mean_and_variance, multinomial_chi_square,
+    beckmann_tree, conic_integral_by_sampling, correlation, count_moment_errors,
+    counts_over_footprints, mean_and_variance, multinomial_chi_square, overlapping_pair_counts,
 };
 use glint_tests::geometry::direction;
 use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
@@ -168,29 +168,9 @@ fn overlapping_footprints_are_correlated_by_their_overlap() {
     let tree = beckmann_tree(0.3, 4_000_000, 3, 0.0, MultinomialMode::Exact);
     let conic = near_specular_conic(6.0);
     let side = 0.01;
-    let mut scratch = QueryScratch::new();
     for overlap in [0.0, 0.25, 0.5, 0.75, 1.0] {
-        let mut rng = SplitMix64::new(8);
-        let pairs: Vec<(f64, f64)> = (0..1500)
-            .map(|_| {
-                let uv = DVec2::new(rng.uniform(), rng.uniform());
-                let shifted = uv + DVec2::new((1.0 - overlap) * side, 0.0);
-                (
-                    tree.query(&square(uv, side), &conic, &mut scratch).count,
-                    tree.query(&square(shifted, side), &conic, &mut scratch)
-                        .count,
-                )
-            })
-            .collect();
-        let (a, b): (Vec<f64>, Vec<f64>) = pairs.iter().copied().unzip();
-        let (mean_a, var_a) = mean_and_variance(&a);
-        let (mean_b, var_b) = mean_and_variance(&b);
-        let covariance = pairs
-            .iter()
-            .map(|(x, y)| (x - mean_a) * (y - mean_b))
-            .sum::<f64>()
-            / (pairs.len() as f64 - 1.0);
-        let correlation = covariance / (var_a * var_b).sqrt();
+        let (a, b) = overlapping_pair_counts(&tree, &conic, side, overlap, 1500, 8);
+        let correlation = correlation(&a, &b);
         // Sampling sd of a correlation ≈ (1 − ρ²)/√n ≤ 0.026; allow 4 sd.
         assert!(
             (correlation - overlap).abs() < 0.1,

@@ -7,7 +7,8 @@ use glam::DVec2;
 use glint_sphere::SphericalConic;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{
-    beckmann_density, conic_integral_by_sampling, mean_and_variance, multinomial_chi_square,
+    beckmann_density, conic_integral_by_sampling, correlation, mean_and_variance,
+    multinomial_chi_square, overlapping_pair_counts,
 };
 use glint_tests::geometry::direction;
 use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
@@ -246,29 +247,9 @@ pub(crate) fn coherence(quick: bool, report: &mut String) -> anyhow::Result<Chec
          | f | correlation |\n|---|---|"
     )?;
     let mut worst = 0.0_f64;
-    let mut scratch = QueryScratch::new();
     for overlap in [0.0, 0.25, 0.5, 0.75, 1.0] {
-        let mut rng = SplitMix64::new(8);
-        let (a, b): (Vec<f64>, Vec<f64>) = (0..pairs)
-            .map(|_| {
-                let uv = DVec2::new(rng.uniform(), rng.uniform());
-                let shifted = uv + DVec2::new((1.0 - overlap) * side, 0.0);
-                (
-                    tree.query(&square(uv, side), &conic, &mut scratch).count,
-                    tree.query(&square(shifted, side), &conic, &mut scratch)
-                        .count,
-                )
-            })
-            .unzip();
-        let (mean_a, var_a) = mean_and_variance(&a);
-        let (mean_b, var_b) = mean_and_variance(&b);
-        let covariance = a
-            .iter()
-            .zip(&b)
-            .map(|(x, y)| (x - mean_a) * (y - mean_b))
-            .sum::<f64>()
-            / (pairs as f64 - 1.0);
-        let correlation = covariance / (var_a * var_b).sqrt();
+        let (a, b) = overlapping_pair_counts(&tree, &conic, side, overlap, pairs, 8);
+        let correlation = correlation(&a, &b);
         worst = worst.max((correlation - overlap).abs());
         writeln!(report, "| {overlap} | {correlation:.3} |")?;
     }

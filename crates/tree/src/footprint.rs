@@ -33,6 +33,21 @@ pub struct Footprint {
     max: DVec2,
 }
 
+/// The translates of a box in one texture row: those touching the footprint, and those inside.
+struct RowTranslates {
+    touching: std::ops::RangeInclusive<i64>,
+    inside: std::ops::RangeInclusive<i64>,
+}
+
+/// The number of integers in a range (0 when empty).
+fn range_len(range: &std::ops::RangeInclusive<i64>) -> u64 {
+    if range.is_empty() {
+        0
+    } else {
+        (range.end() - range.start() + 1) as u64
+    }
+}
+
 /// How a box of the tree meets a footprint's translates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BoxOverlap {
@@ -168,24 +183,11 @@ impl Footprint {
         }
         let (mut inside, mut touching) = (0u64, 0u64);
         for j in self.rows_for(min.y, max.y) {
-            let (y0, y1) = (min.y + j as f64, max.y + j as f64);
-            let Some((band_lo, band_hi)) = self.band(y0, y1) else {
+            let Some(row) = self.row_translates(min, max, j) else {
                 continue;
             };
-            // Translates i with [min.x + i, max.x + i] overlapping [band_lo, band_hi].
-            let first = (band_lo - max.x).ceil() as i64;
-            let last = (band_hi - min.x).floor() as i64;
-            if last < first {
-                continue;
-            }
-            touching += (last - first + 1) as u64;
-            if let (Some((a0, b0)), Some((a1, b1))) = (self.row(y0), self.row(y1)) {
-                let first_in = (a0.max(a1) - min.x).ceil() as i64;
-                let last_in = (b0.min(b1) - max.x).floor() as i64;
-                if last_in >= first_in {
-                    inside += (last_in - first_in + 1) as u64;
-                }
-            }
+            touching += range_len(&row.touching);
+            inside += range_len(&row.inside);
         }
         BoxOverlap {
             inside,
@@ -230,6 +232,27 @@ impl Footprint {
         overlap
     }
 
+    /// In texture row j, the translates i of the box [min, max] that touch the footprint and
+    /// those that lie inside it (the box is inside the convex footprint iff its four corners
+    /// are; it touches it iff their x-ranges overlap within the row's band).
+    fn row_translates(&self, min: DVec2, max: DVec2, j: i64) -> Option<RowTranslates> {
+        let (y0, y1) = (min.y + j as f64, max.y + j as f64);
+        let (band_lo, band_hi) = self.band(y0, y1)?;
+        let touching = (band_lo - max.x).ceil() as i64..=(band_hi - min.x).floor() as i64;
+        if touching.is_empty() {
+            return None;
+        }
+        let inside = match (self.row(y0), self.row(y1)) {
+            (Some((a0, b0)), Some((a1, b1))) => {
+                (a0.max(a1) - min.x).ceil() as i64..=(b0.min(b1) - max.x).floor() as i64
+            }
+            // No translate is inside when a box edge's row misses the footprint.
+            #[allow(clippy::reversed_empty_ranges)]
+            _ => 1..=0,
+        };
+        Some(RowTranslates { touching, inside })
+    }
+
     /// The number of integer translates x + (i, j) inside the footprint: the multiplicity m(x).
     #[must_use]
     pub fn multiplicity(&self, x: DVec2) -> u64 {
@@ -254,24 +277,12 @@ impl Footprint {
         let max = min + DVec2::splat(size);
         let mut area = 0.0;
         for j in self.rows_for(min.y, max.y) {
-            let (y0, y1) = (min.y + j as f64, max.y + j as f64);
-            let Some((band_lo, band_hi)) = self.band(y0, y1) else {
+            let Some(row) = self.row_translates(min, max, j) else {
                 continue;
             };
-            let first = (band_lo - max.x).ceil() as i64;
-            let last = (band_hi - min.x).floor() as i64;
-            let (first_in, last_in) = match (self.row(y0), self.row(y1)) {
-                (Some((a0, b0)), Some((a1, b1))) => (
-                    (a0.max(a1) - min.x).ceil() as i64,
-                    (b0.min(b1) - max.x).floor() as i64,
-                ),
-                _ => (1, 0),
-            };
-            if last_in >= first_in {
-                area += (last_in - first_in + 1) as f64 * size * size;
-            }
-            for i in first..=last {
-                if i >= first_in && i <= last_in {
+            area += range_len(&row.inside) as f64 * size * size;
+            for i in row.touching {
+                if row.inside.contains(&i) {
                     continue;
                 }
                 let offset = DVec2::new(i as f64, j as f64);
