@@ -12,6 +12,7 @@
 
 pub mod counts;
 pub mod geometry;
+pub mod sampling;
 
 /// SplitMix64 (Steele, Lea and Flood 2014): a tiny, seedable generator of uniform numbers for
 /// deterministic validation runs. Not for rendering (glint-tree has its own TEA streams).

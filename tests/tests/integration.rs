@@ -2,6 +2,7 @@
 //!
 //! Sizes here fit `cargo test`; `cargo xtask validate` runs the same checkers at full size.
 
+mod brdf;
 mod sphere;
 mod tree;
 

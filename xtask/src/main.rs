@@ -2,10 +2,12 @@
 //!
 //! - `cargo xtask validate [--quick]`: the validation suites, written as a Markdown report under
 //!   `target/validate/`; exits non-zero when any check fails.
+//! - `cargo xtask eval [FILE]`: the model as JSON Lines (see DESIGN.md), from FILE or stdin.
 //! - `cargo xtask bench [--quick]`: runs the criterion benchmarks and writes the per-call table
 //!   that the README quotes to `target/bench/summary.md`.
 
 mod bench;
+mod eval;
 mod validate;
 mod validate_counts;
 
@@ -32,6 +34,11 @@ enum Command {
         #[arg(long, default_value = "target/validate")]
         out: std::path::PathBuf,
     },
+    /// Evaluate the model for JSON Lines requests (from FILE, or standard input).
+    Eval {
+        /// The input file (default: standard input).
+        file: Option<std::path::PathBuf>,
+    },
     /// Run the criterion benchmarks and write the summary table.
     Bench {
         /// Shorter measurement times (noisier figures).
@@ -48,5 +55,12 @@ fn main() -> anyhow::Result<()> {
     match cli.command {
         Command::Validate { quick, out } => validate::run(quick, &out),
         Command::Bench { quick, out } => bench::run(quick, &out),
+        Command::Eval { file } => {
+            let failed = eval::run(file.as_deref())?;
+            if failed > 0 {
+                anyhow::bail!("{failed} line(s) failed");
+            }
+            Ok(())
+        }
     }
 }

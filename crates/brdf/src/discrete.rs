@@ -1,0 +1,372 @@
+//! The discrete multiscale BRDF (Eq. 5) and its importance sampling (Sec. 3.4).
+//!
+//! # Normalization (the corrected Eq. 5)
+//! A particle is a mirror facet with position uniform in the texture square and normal m with
+//! density p(m) = D(m)(m·n). For a footprint of area a(A) and the conic Ω_h of normals that
+//! reflect ω_i into the cone Ω_o of radius γ around ω_o, the count has mean
+//!
+//! ```text
+//!   E[count] = N · a(A) · ∫_{Ω_h} D(m)(m·n) dm,      D̂ = count / N  (Eq. 6).
+//! ```
+//!
+//! The half-vector map ω ↦ h(ω) = (ω_i + ω)/|ω_i + ω| has Jacobian dm/dω = 1/(4 ω_i·h), so
+//!
+//! ```text
+//!   ∫_{Ω_h} D(m)(m·n) dm = ∫_{Ω_o} D(h(ω)) (h(ω)·n) / (4 ω_i·h(ω)) dω.
+//! ```
+//!
+//! The smooth BRDF convolved with the normalized cone kernel is
+//! f̄ = (1/σ(Ω_o)) ∫_{Ω_o} F D G / (4 cos θ_i cos θ) dω, σ(Ω_o) = 2π(1 − cos γ) = 4π sin²(γ/2)
+//! (the paper prints π(1 − cos γ), half the solid angle of the cone). Holding F, G, cos θ_o and
+//! the ratio (ω_i·h)/(h·n) at the cone's centre (the approximation the paper makes to go from
+//! Eq. 4 to Eq. 5), matching E[f̂] = f̄ requires
+//!
+//! ```text
+//!   f̂(A, ω_i, Ω_o) = F(ω_i·h) G(ω_i, ω_o, h) (ω_i·h) D̂ / (a(A) σ(Ω_o) (h·n) cos θ_i cos θ_o),
+//! ```
+//!
+//! which differs from the printed Eq. 5 by the factor 1/(h·n) (the particle density carries
+//! m·n) and by σ(Ω_o) = 2π(1 − cos γ). As N → ∞ (or with many particles per query) f̂ tends to
+//! the smooth BRDF convolved with the cone; `cargo test` and `cargo xtask validate` check the
+//! mean over footprint positions against the smooth BRDF.
+//!
+//! # Without a footprint
+//! Paths after the first bounce carry no ray differentials; there (as in the paper) the BRDF
+//! is the smooth model of the same material: [`DiscreteBrdf::eval_at`] with `None`, and the
+//! [`Bxdf`] implementation.
+//!
+//! # Importance sampling (Sec. 3.4)
+//! Sample the smooth model with widened roughness α_s = scale·α (2 by default), reflecting ω_i
+//! about the sampled normal to ω′, then ω_o uniformly in the cone of radius γ around ω′. The
+//! density is p_s convolved with the cone, (1/σ(Ω_o)) ∫_{cone(ω_o)} p_s(ω′) dω′, evaluated by
+//! quasi-Monte Carlo over the first `pdf_points` points of a (0, 2)-sequence (64 by default)
+//! mapped area-uniformly onto the cone.
+
+use glam::DVec3;
+use glint_sphere::SphericalConic;
+use glint_tree::{
+    CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch,
+    expected_conic_solid_angle,
+};
+
+use crate::distribution::{Microfacet, NormalSampling};
+use crate::error::BrdfError;
+use crate::fresnel::Fresnel;
+use crate::qmc::zero_two_point;
+use crate::smooth::{Bxdf, BxdfSample, MicrofacetBrdf, above_horizon};
+
+/// The parameters of a glint material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlintParameters {
+    /// D and its roughness (α_x, α_y).
+    pub distribution: Microfacet,
+    /// N, particles per unit texture square.
+    pub particles: u64,
+    /// The cone radius γ in radians, in (0, 60°].
+    pub gamma: f64,
+    /// ε of Eq. 10 (0 = exact).
+    pub epsilon: f64,
+    /// The material seed.
+    pub seed: u64,
+    /// The Fresnel term.
+    pub fresnel: Fresnel,
+    /// Exact multinomial splits or the paper's normal approximation.
+    pub multinomial: MultinomialMode,
+    /// 0: each particle weighs 1/N; 3: per-channel Dirichlet particle areas (coloured glints,
+    /// Fig. 8).
+    pub colour_channels: usize,
+    /// α_s / α of the sampling distribution (the paper: 2).
+    pub sampling_scale: f64,
+    /// QMC points of the sampling pdf (the paper: 64).
+    pub pdf_points: usize,
+    /// The expected footprint area for Eq. 11 (texture units).
+    pub expected_footprint_area: f64,
+}
+
+impl GlintParameters {
+    /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, seed 0, F = 1,
+    /// exact multinomials, no colour, α_s = 2α, 64 pdf points, footprints of 10⁻⁶.
+    #[must_use]
+    pub fn new(distribution: Microfacet) -> Self {
+        Self {
+            distribution,
+            particles: 1_000_000,
+            gamma: 1f64.to_radians(),
+            epsilon: 0.1,
+            seed: 0,
+            fresnel: Fresnel::None,
+            multinomial: MultinomialMode::Exact,
+            colour_channels: 0,
+            sampling_scale: 2.0,
+            pdf_points: 64,
+            expected_footprint_area: 1e-6,
+        }
+    }
+}
+
+/// One evaluation of the discrete BRDF with everything it found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlintEvaluation {
+    /// f̂ per RGB channel (the corrected Eq. 5).
+    pub f_hat: DVec3,
+    /// The smooth BRDF f at (ω_i, ω_o).
+    pub f_smooth: DVec3,
+    /// Particles found (possibly fractional).
+    pub count: f64,
+    /// N·a(A)·∫p over the conic: the expected count.
+    pub expected_count: f64,
+    /// D̂ of Eq. 6 per channel.
+    pub d_hat: DVec3,
+    /// Tree nodes visited.
+    pub nodes_visited: u32,
+}
+
+/// The discrete stochastic microfacet BRDF of a material.
+#[derive(Clone, Debug)]
+pub struct DiscreteBrdf {
+    parameters: GlintParameters,
+    tree: CountTree,
+    smooth: MicrofacetBrdf,
+    sampler: MicrofacetBrdf,
+    cone_solid_angle: f64,
+}
+
+impl DiscreteBrdf {
+    /// Builds the material: validates the parameters and builds its count tree.
+    ///
+    /// # Errors
+    /// A [`BrdfError`] naming the invalid parameter.
+    pub fn new(parameters: GlintParameters) -> Result<Self, BrdfError> {
+        let gamma = parameters.gamma;
+        if !(gamma > 0.0 && gamma <= 60f64.to_radians()) {
+            return Err(BrdfError::InvalidConeRadius { gamma });
+        }
+        if !(parameters.sampling_scale >= 1.0 && parameters.sampling_scale.is_finite()) {
+            return Err(BrdfError::InvalidSamplingScale {
+                scale: parameters.sampling_scale,
+            });
+        }
+        if !(1..=4096).contains(&parameters.pdf_points) {
+            return Err(BrdfError::InvalidPdfPoints {
+                points: parameters.pdf_points,
+            });
+        }
+        let smooth = MicrofacetBrdf::new(
+            parameters.distribution,
+            parameters.fresnel,
+            NormalSampling::Distribution,
+        )?;
+        let sampler = MicrofacetBrdf::new(
+            parameters.distribution.scaled(parameters.sampling_scale),
+            Fresnel::None,
+            NormalSampling::Distribution,
+        )?;
+        let distribution = parameters.distribution;
+        let config = CountTreeConfig {
+            particles: parameters.particles,
+            seed: parameters.seed,
+            epsilon: parameters.epsilon,
+            multinomial: parameters.multinomial,
+            expected_query_area: parameters.expected_footprint_area,
+            expected_query_solid_angle: expected_conic_solid_angle(gamma),
+            colour_channels: parameters.colour_channels,
+            ..CountTreeConfig::default()
+        };
+        let tree = CountTree::new(
+            config,
+            std::sync::Arc::new(move |m: DVec3| distribution.particle_density(m)),
+        )?;
+        Ok(Self {
+            parameters,
+            tree,
+            smooth,
+            sampler,
+            cone_solid_angle: 4.0 * std::f64::consts::PI * (0.5 * gamma).sin().powi(2),
+        })
+    }
+
+    /// The parameters.
+    #[must_use]
+    pub fn parameters(&self) -> &GlintParameters {
+        &self.parameters
+    }
+
+    /// The smooth BRDF of the same material (the N → ∞ limit, and the fallback).
+    #[must_use]
+    pub fn smooth(&self) -> &MicrofacetBrdf {
+        &self.smooth
+    }
+
+    /// The count tree.
+    #[must_use]
+    pub fn tree(&self) -> &CountTree {
+        &self.tree
+    }
+
+    /// f̂ with every intermediate quantity, for the footprint `footprint`. Directions that are
+    /// not above the horizon (or not finite) give zeros.
+    pub fn evaluate(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        footprint: &Footprint,
+        scratch: &mut QueryScratch,
+    ) -> GlintEvaluation {
+        let zero = GlintEvaluation {
+            f_hat: DVec3::ZERO,
+            f_smooth: DVec3::ZERO,
+            count: 0.0,
+            expected_count: 0.0,
+            d_hat: DVec3::ZERO,
+            nodes_visited: 0,
+        };
+        if !(above_horizon(wi) && above_horizon(wo)) {
+            return zero;
+        }
+        let (wi, wo) = (wi.normalize(), wo.normalize());
+        let Ok(conic) = SphericalConic::new(wi, wo, self.parameters.gamma) else {
+            return zero;
+        };
+        let result = self.tree.query(footprint, &conic, scratch);
+        let expected_count = self.tree.expected_count(footprint, &conic, scratch);
+        let d_hat = DVec3::from_array(result.d_hat);
+        let f_smooth = self.smooth.eval(wi, wo);
+        let h = (wi + wo).normalize();
+        let area = footprint.area();
+        let f_hat = if h.is_finite() && h.z > 0.0 && area > 0.0 {
+            let distribution = self.smooth.distribution();
+            let scale = distribution.g(wi, wo, h) * wi.dot(h)
+                / (area * self.cone_solid_angle * h.z * wi.z * wo.z);
+            self.smooth.fresnel().evaluate(wi.dot(h)) * d_hat * scale
+        } else {
+            DVec3::ZERO
+        };
+        GlintEvaluation {
+            f_hat,
+            f_smooth,
+            count: result.count,
+            expected_count,
+            d_hat,
+            nodes_visited: result.nodes_visited,
+        }
+    }
+
+    /// f̂ for a footprint, or the smooth BRDF when there is none (paths after the first bounce).
+    pub fn eval_at(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        footprint: Option<&Footprint>,
+        scratch: &mut QueryScratch,
+    ) -> DVec3 {
+        match footprint {
+            Some(footprint) => self.evaluate(wi, wo, footprint, scratch).f_hat,
+            None => self.smooth.eval(wi, wo),
+        }
+    }
+}
+
+impl Bxdf for DiscreteBrdf {
+    /// The smooth BRDF: the value without a footprint (see [`DiscreteBrdf::eval_at`]).
+    fn eval(&self, wi: DVec3, wo: DVec3) -> DVec3 {
+        self.smooth.eval(wi, wo)
+    }
+
+    /// ω′ from the widened smooth model with `u`, then ω_o uniform in the cone of radius γ
+    /// around ω′ from `u_lobe`, split into two 26-bit uniforms (its even and odd bits). The
+    /// weight is f_smooth·cos θ_o / pdf.
+    fn sample(&self, wi: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<BxdfSample> {
+        if !above_horizon(wi) {
+            return None;
+        }
+        let wi = wi.normalize();
+        let centre = self.sampler.sample(wi, 0.0, u)?.wo;
+        let [a, b] = split_uniform(u_lobe);
+        let wo = uniform_in_cone(centre, self.parameters.gamma, a, b);
+        if !above_horizon(wo) {
+            return None;
+        }
+        let pdf = self.pdf(wi, wo);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let f = self.smooth.eval(wi, wo);
+        Some(BxdfSample {
+            wo,
+            f,
+            pdf,
+            weight: f * (wo.z / pdf),
+        })
+    }
+
+    /// (1/σ) ∫ over the cone around ω_o of the widened model's density, by QMC.
+    fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
+        if !(above_horizon(wi) && above_horizon(wo)) {
+            return 0.0;
+        }
+        let (wi, wo) = (wi.normalize(), wo.normalize());
+        let points = self.parameters.pdf_points;
+        let mut sum = 0.0;
+        for i in 0..points {
+            let [a, b] = zero_two_point(i as u32);
+            sum += self
+                .sampler
+                .pdf(wi, uniform_in_cone(wo, self.parameters.gamma, a, b));
+        }
+        sum / points as f64
+    }
+}
+
+/// Two uniforms from one: the even and the odd bits of its 52-bit mantissa fraction.
+fn split_uniform(u: f64) -> [f64; 2] {
+    let bits = (u.clamp(0.0, 1.0 - f64::EPSILON) * (1u64 << 52) as f64) as u64;
+    let (mut even, mut odd) = (0u64, 0u64);
+    for k in 0..26 {
+        even |= ((bits >> (2 * k + 1)) & 1) << k;
+        odd |= ((bits >> (2 * k)) & 1) << k;
+    }
+    let scale = 1.0 / (1u64 << 26) as f64;
+    // Bit 2k+1 is the more significant of each pair: `even` carries the coarse half.
+    [even as f64 * scale, odd as f64 * scale]
+}
+
+/// A direction uniform (in solid angle) in the cone of radius γ around unit `axis`:
+/// 1 − cos θ = u·(1 − cos γ), written with 2 sin²(γ/2) for tiny γ, φ = 2πv.
+#[must_use]
+pub fn uniform_in_cone(axis: DVec3, gamma: f64, u: f64, v: f64) -> DVec3 {
+    let one_minus_cos = u * 2.0 * (0.5 * gamma).sin().powi(2);
+    let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+    let phi = 2.0 * std::f64::consts::PI * v;
+    // An orthonormal basis around the axis (Duff et al. 2017).
+    let sign = 1.0_f64.copysign(axis.z);
+    let a = -1.0 / (sign + axis.z);
+    let b = axis.x * axis.y * a;
+    let t = DVec3::new(1.0 + sign * axis.x * axis.x * a, sign * b, -sign * axis.x);
+    let s = DVec3::new(b, sign + axis.y * axis.y * a, -axis.y);
+    ((1.0 - one_minus_cos) * axis + sin_theta * (phi.cos() * t + phi.sin() * s)).normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_uniform_gives_two_uniforms() {
+        let [a, b] = split_uniform(0.75);
+        assert!((0.0..1.0).contains(&a) && (0.0..1.0).contains(&b));
+        // 0.75 = 0b11 followed by zeros: the two coarsest bits go one to each half.
+        assert_eq!([a, b], [0.5, 0.5]);
+    }
+
+    #[test]
+    fn cone_directions_stay_in_the_cone() {
+        let axis = DVec3::new(0.3, -0.2, 0.9).normalize();
+        for gamma in [1e-4, 0.1, 1.0] {
+            for (u, v) in [(0.0, 0.0), (1.0, 0.3), (0.5, 0.9)] {
+                let w = uniform_in_cone(axis, gamma, u, v);
+                assert!((w.length() - 1.0).abs() < 1e-12);
+                assert!(w.dot(axis) >= gamma.cos() - 1e-12);
+            }
+        }
+    }
+}

@@ -1,0 +1,82 @@
+//! The error type of glint-brdf.
+
+use std::fmt;
+
+/// Why a BRDF or material could not be built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BrdfError {
+    /// Roughness α must be finite and in [1e-4, 1].
+    InvalidRoughness {
+        /// The rejected value.
+        alpha: f64,
+    },
+    /// Visible-normal sampling is implemented for GGX only.
+    VisibleSamplingUnsupported,
+    /// A Fresnel parameter (η or k) was not finite or not positive (k may be 0).
+    InvalidFresnel,
+    /// The cone radius γ must be finite and in (0, 60°].
+    InvalidConeRadius {
+        /// The rejected value (radians).
+        gamma: f64,
+    },
+    /// The sampling roughness scale must be finite and ≥ 1.
+    InvalidSamplingScale {
+        /// The rejected value.
+        scale: f64,
+    },
+    /// The pdf's quadrature needs 1 to 4096 points.
+    InvalidPdfPoints {
+        /// The rejected value.
+        points: usize,
+    },
+    /// The count tree rejected the material.
+    Tree(glint_tree::TreeError),
+}
+
+impl fmt::Display for BrdfError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidRoughness { alpha } => {
+                write!(
+                    f,
+                    "roughness alpha = {alpha} is invalid: it must be finite and in [1e-4, 1]"
+                )
+            }
+            Self::VisibleSamplingUnsupported => {
+                write!(f, "visible-normal sampling is implemented for GGX only")
+            }
+            Self::InvalidFresnel => {
+                write!(f, "Fresnel parameters must be finite, eta > 0 and k >= 0")
+            }
+            Self::InvalidConeRadius { gamma } => write!(
+                f,
+                "cone radius gamma = {gamma} rad is invalid: it must be finite and in (0, 60 degrees]"
+            ),
+            Self::InvalidSamplingScale { scale } => {
+                write!(
+                    f,
+                    "sampling roughness scale {scale} is invalid: it must be finite and >= 1"
+                )
+            }
+            Self::InvalidPdfPoints { points } => {
+                write!(f, "{points} pdf quadrature points requested: use 1 to 4096")
+            }
+            Self::Tree(error) => write!(f, "count tree: {error}"),
+        }
+    }
+}
+
+impl std::error::Error for BrdfError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Tree(error) => Some(error),
+            _ => None,
+        }
+    }
+}
+
+impl From<glint_tree::TreeError> for BrdfError {
+    fn from(error: glint_tree::TreeError) -> Self {
+        Self::Tree(error)
+    }
+}

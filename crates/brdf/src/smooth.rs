@@ -1,0 +1,152 @@
+//! The BRDF interface and the smooth microfacet BRDF (Eq. 3).
+//!
+//! The interface follows pbrt-v4's BxDF: [`Bxdf::eval`], [`Bxdf::sample`] (from uniform numbers,
+//! not a generator) and [`Bxdf::pdf`]. Directions are unit vectors in the local shading frame
+//! (n = +z), both pointing away from the surface. Invalid directions (non-finite, or at or
+//! below the horizon) give a zero value, a zero pdf and no sample: never NaN.
+
+use glam::DVec3;
+
+use crate::distribution::{Microfacet, NormalSampling};
+use crate::error::BrdfError;
+use crate::fresnel::Fresnel;
+
+/// A sampled direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BxdfSample {
+    /// The sampled outgoing direction (unit, above the horizon).
+    pub wo: DVec3,
+    /// The BRDF value f(ω_i, ω_o) per RGB channel.
+    pub f: DVec3,
+    /// The density of ω_o in solid angle.
+    pub pdf: f64,
+    /// The Monte Carlo weight f·cos θ_o / pdf: the reflected radiance estimate for unit
+    /// incident radiance from ω_o.
+    pub weight: DVec3,
+}
+
+/// A BRDF in the style of pbrt-v4.
+pub trait Bxdf {
+    /// f(ω_i, ω_o) per RGB channel.
+    fn eval(&self, wi: DVec3, wo: DVec3) -> DVec3;
+    /// A direction ω_o for ω_i from the uniform numbers `u_lobe` (selects a lobe where there are
+    /// several) and `u`, or `None` when the sample is invalid (below the horizon).
+    fn sample(&self, wi: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<BxdfSample>;
+    /// The density of `sample` choosing ω_o, in solid angle.
+    fn pdf(&self, wi: DVec3, wo: DVec3) -> f64;
+}
+
+/// Whether a direction is usable: finite and strictly above the horizon.
+pub(crate) fn above_horizon(w: DVec3) -> bool {
+    w.is_finite() && w.z > 0.0
+}
+
+/// The mirror reflection of ω_i about m.
+pub(crate) fn reflect(wi: DVec3, m: DVec3) -> DVec3 {
+    2.0 * wi.dot(m) * m - wi
+}
+
+/// The smooth microfacet BRDF of Eq. 3: f = F(ω_i·h) D(h) G(ω_i, ω_o, h) / (4 cos θ_i cos θ_o).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MicrofacetBrdf {
+    distribution: Microfacet,
+    fresnel: Fresnel,
+    sampling: NormalSampling,
+}
+
+impl MicrofacetBrdf {
+    /// The BRDF of `distribution` with `fresnel`, sampling normals by `sampling`.
+    ///
+    /// # Errors
+    /// Invalid Fresnel parameters, or visible-normal sampling of a Beckmann distribution.
+    pub fn new(
+        distribution: Microfacet,
+        fresnel: Fresnel,
+        sampling: NormalSampling,
+    ) -> Result<Self, BrdfError> {
+        if sampling == NormalSampling::Visible
+            && distribution.kind() != crate::DistributionKind::Ggx
+        {
+            return Err(BrdfError::VisibleSamplingUnsupported);
+        }
+        Ok(Self {
+            distribution,
+            fresnel: fresnel.validated()?,
+            sampling,
+        })
+    }
+
+    /// The microfacet distribution.
+    #[must_use]
+    pub fn distribution(&self) -> &Microfacet {
+        &self.distribution
+    }
+
+    /// The Fresnel term.
+    #[must_use]
+    pub fn fresnel(&self) -> &Fresnel {
+        &self.fresnel
+    }
+
+    /// The density of the facet normal m that `sample` draws for ω_i.
+    fn normal_pdf(&self, wi: DVec3, m: DVec3) -> f64 {
+        match self.sampling {
+            NormalSampling::Distribution => self.distribution.normal_pdf(m),
+            NormalSampling::Visible => self.distribution.visible_normal_pdf(wi, m),
+        }
+    }
+}
+
+impl Bxdf for MicrofacetBrdf {
+    fn eval(&self, wi: DVec3, wo: DVec3) -> DVec3 {
+        if !(above_horizon(wi) && above_horizon(wo)) {
+            return DVec3::ZERO;
+        }
+        let h = (wi + wo).normalize();
+        if !h.is_finite() {
+            return DVec3::ZERO;
+        }
+        let d = self.distribution.d(h);
+        let g = self.distribution.g(wi, wo, h);
+        self.fresnel.evaluate(wi.dot(h)) * (d * g / (4.0 * wi.z * wo.z))
+    }
+
+    /// Draws m (from p(m) or the visible normals), reflects ω_i about it; `u_lobe` is unused.
+    fn sample(&self, wi: DVec3, _u_lobe: f64, u: [f64; 2]) -> Option<BxdfSample> {
+        if !above_horizon(wi) {
+            return None;
+        }
+        let m = match self.sampling {
+            NormalSampling::Distribution => self.distribution.sample_normal(u),
+            NormalSampling::Visible => self.distribution.sample_visible_normal(wi, u).ok()?,
+        };
+        let wo = reflect(wi, m);
+        if !above_horizon(wo) || wi.dot(m) <= 0.0 {
+            return None;
+        }
+        let pdf = self.pdf(wi, wo);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let f = self.eval(wi, wo);
+        Some(BxdfSample {
+            wo,
+            f,
+            pdf,
+            weight: f * (wo.z / pdf),
+        })
+    }
+
+    /// The normal density times the reflection Jacobian dm/dω_o = 1/(4 ω_i·h).
+    fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
+        if !(above_horizon(wi) && above_horizon(wo)) {
+            return 0.0;
+        }
+        let h = (wi + wo).normalize();
+        let cos = wi.dot(h);
+        if !(cos > 0.0) {
+            return 0.0;
+        }
+        self.normal_pdf(wi, h) / (4.0 * cos)
+    }
+}
