@@ -160,3 +160,33 @@ pub fn table1_statistics(setting: &Table1Setting, n: usize, seed: u64) -> (f64, 
     }
     (nodes / n as f64, particles / n as f64)
 }
+
+/// The glint material of a Table 1 setting and `n` (ω_i, ω_o, footprint) near the highlight.
+#[must_use]
+pub fn table1_brdf_workload(
+    setting: &Table1Setting,
+    n: usize,
+    seed: u64,
+) -> (
+    glint_brdf::DiscreteBrdf,
+    Vec<(glam::DVec3, glam::DVec3, Footprint)>,
+) {
+    let distribution = glint_brdf::Microfacet::new(
+        glint_brdf::DistributionKind::Beckmann,
+        setting.alpha,
+        setting.alpha,
+    )
+    .expect("valid roughness");
+    let mut parameters = glint_brdf::GlintParameters::new(distribution);
+    parameters.particles = setting.particles;
+    parameters.gamma = setting.gamma_degrees.to_radians();
+    parameters.seed = seed;
+    parameters.expected_footprint_area = PIXEL_FOOTPRINT_SIDE * PIXEL_FOOTPRINT_SIDE;
+    let brdf = glint_brdf::DiscreteBrdf::new(parameters).expect("valid setting");
+    let (_, queries) = table1_workload(setting, n, seed);
+    let queries = queries
+        .into_iter()
+        .map(|(f, c)| (c.wi(), c.wo(), f))
+        .collect();
+    (brdf, queries)
+}

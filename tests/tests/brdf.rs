@@ -303,3 +303,35 @@ fn bad_parameters_are_named() {
         assert_eq!(brdf.pdf(wi, wo), 0.0);
     }
 }
+
+/// The renderer's lean call and the full evaluation agree bit for bit.
+#[test]
+fn lean_and_full_evaluation_agree() {
+    let d = Microfacet::new(DistributionKind::Ggx, 0.2, 0.3).unwrap();
+    let mut parameters = GlintParameters::new(d);
+    parameters.particles = 50_000_000;
+    parameters.gamma = 2f64.to_radians();
+    parameters.fresnel = Fresnel::Conductor {
+        eta: DVec3::new(0.2, 0.9, 1.1),
+        k: DVec3::new(3.9, 2.4, 2.2),
+    };
+    let brdf = DiscreteBrdf::new(parameters).unwrap();
+    let mut scratch = QueryScratch::new();
+    let mut rng = SplitMix64::new(5);
+    let mut nonzero = 0;
+    for _ in 0..300 {
+        let wi = direction(rng.uniform() * 1.2, rng.uniform() * 2.0 * PI);
+        let m = d.sample_normal([rng.uniform(), rng.uniform()]);
+        let wo = 2.0 * wi.dot(m) * m - wi;
+        let f = Footprint::new(
+            DVec2::new(rng.uniform(), rng.uniform()),
+            DVec2::new(2e-3, 0.0),
+            DVec2::new(0.0, 2e-3),
+        )
+        .unwrap();
+        let full = brdf.evaluate(wi, wo, &f, &mut scratch).f_hat;
+        assert_eq!(brdf.eval_at(wi, wo, Some(&f), &mut scratch), full);
+        nonzero += usize::from(full != DVec3::ZERO);
+    }
+    assert!(nonzero > 10);
+}

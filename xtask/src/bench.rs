@@ -56,6 +56,16 @@ const TREE_BENCHMARKS: [(&str, &str); 8] = [
     ),
 ];
 
+/// The BRDF benchmarks (besides the per-setting multiscale evals).
+const BRDF_BENCHMARKS: [(&str, &str); 3] = [
+    ("smooth_eval", "smooth microfacet BRDF (Eq. 3), Beckmann"),
+    ("glint_sample", "glint sampler: widened α, then the cone"),
+    (
+        "glint_pdf_64",
+        "glint sampler pdf, 64-point QMC convolution (target ≤ 2 µs)",
+    ),
+];
+
 /// Queries per setting for the Table 1 node and particle statistics.
 const TABLE1_QUERIES: usize = 4096;
 
@@ -110,12 +120,22 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
             median("tree", name)?
         )?;
     }
+    table.push_str(
+        "\n## BRDF (glint-brdf)\n\n| benchmark | what | median per call |\n|---|---|---|\n",
+    );
+    for (name, what) in BRDF_BENCHMARKS {
+        writeln!(
+            table,
+            "| brdf/{name} | {what} | {:.1} ns |",
+            median("brdf", name)?
+        )?;
+    }
     writeln!(
         table,
         "\n## Table 1 settings (Beckmann, ε = 0.1, exact multinomials, footprint side 10⁻³, \
          directions near the highlight; {TABLE1_QUERIES} queries for the means)\n\n\
-         | setting | N | γ | α | Alg. 2 entries | tree build | mean nodes visited | mean particles found | median per query | per visited node |\n\
-         |---|---|---|---|---|---|---|---|---|---|"
+         | setting | N | γ | α | Alg. 2 entries | tree build | mean nodes visited | mean particles found | median per query | per visited node | multiscale eval |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|"
     )?;
     for setting in &glint_benches::TABLE1 {
         let started = std::time::Instant::now();
@@ -125,7 +145,7 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
         let per_query = median("tree", &format!("query_{}", setting.name))?;
         writeln!(
             table,
-            "| {} | {:.0e} | {}° | {} | {} | {:.2} ms | {nodes:.1} | {particles:.2} | {:.1} µs | {:.0} ns |",
+            "| {} | {:.0e} | {}° | {} | {} | {:.2} ms | {nodes:.1} | {particles:.2} | {:.1} µs | {:.0} ns | {:.1} µs |",
             setting.name,
             setting.particles as f64,
             setting.gamma_degrees,
@@ -133,7 +153,8 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
             tree.quadrature().len(),
             build.as_secs_f64() * 1e3,
             per_query / 1000.0,
-            per_query / nodes
+            per_query / nodes,
+            median("brdf", &format!("eval_{}", setting.name))? / 1000.0
         )?;
     }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;

@@ -129,6 +129,8 @@ pub struct DiscreteBrdf {
     smooth: MicrofacetBrdf,
     sampler: MicrofacetBrdf,
     cone_solid_angle: f64,
+    /// The pdf's QMC points in the cone's own frame (axis +z), computed once.
+    cone_points: Vec<DVec3>,
 }
 
 impl DiscreteBrdf {
@@ -176,12 +178,19 @@ impl DiscreteBrdf {
             config,
             std::sync::Arc::new(move |m: DVec3| distribution.particle_density(m)),
         )?;
+        let cone_points = (0..parameters.pdf_points)
+            .map(|i| {
+                let [a, b] = zero_two_point(i as u32);
+                uniform_in_cone(DVec3::Z, gamma, a, b)
+            })
+            .collect();
         Ok(Self {
             parameters,
             tree,
             smooth,
             sampler,
             cone_solid_angle: 4.0 * std::f64::consts::PI * (0.5 * gamma).sin().powi(2),
+            cone_points,
         })
     }
 
@@ -231,16 +240,7 @@ impl DiscreteBrdf {
         let expected_count = self.tree.expected_count(footprint, &conic, scratch);
         let d_hat = DVec3::from_array(result.d_hat);
         let f_smooth = self.smooth.eval(wi, wo);
-        let h = (wi + wo).normalize();
-        let area = footprint.area();
-        let f_hat = if h.is_finite() && h.z > 0.0 && area > 0.0 {
-            let distribution = self.smooth.distribution();
-            let scale = distribution.g(wi, wo, h) * wi.dot(h)
-                / (area * self.cone_solid_angle * h.z * wi.z * wo.z);
-            self.smooth.fresnel().evaluate(wi.dot(h)) * d_hat * scale
-        } else {
-            DVec3::ZERO
-        };
+        let f_hat = self.f_hat_from_d_hat(wi, wo, d_hat, footprint.area());
         GlintEvaluation {
             f_hat,
             f_smooth,
@@ -252,6 +252,7 @@ impl DiscreteBrdf {
     }
 
     /// f̂ for a footprint, or the smooth BRDF when there is none (paths after the first bounce).
+    /// The renderer's call: one tree query and the factor of Eq. 5, nothing else.
     pub fn eval_at(
         &self,
         wi: DVec3,
@@ -259,10 +260,29 @@ impl DiscreteBrdf {
         footprint: Option<&Footprint>,
         scratch: &mut QueryScratch,
     ) -> DVec3 {
-        match footprint {
-            Some(footprint) => self.evaluate(wi, wo, footprint, scratch).f_hat,
-            None => self.smooth.eval(wi, wo),
+        let Some(footprint) = footprint else {
+            return self.smooth.eval(wi, wo);
+        };
+        if !(above_horizon(wi) && above_horizon(wo)) {
+            return DVec3::ZERO;
         }
+        let (wi, wo) = (wi.normalize(), wo.normalize());
+        let Ok(conic) = SphericalConic::new(wi, wo, self.parameters.gamma) else {
+            return DVec3::ZERO;
+        };
+        let d_hat = DVec3::from_array(self.tree.query(footprint, &conic, scratch).d_hat);
+        self.f_hat_from_d_hat(wi, wo, d_hat, footprint.area())
+    }
+
+    /// The corrected Eq. 5 for unit directions above the horizon.
+    fn f_hat_from_d_hat(&self, wi: DVec3, wo: DVec3, d_hat: DVec3, area: f64) -> DVec3 {
+        let h = (wi + wo).normalize();
+        if !(h.is_finite() && h.z > 0.0 && area > 0.0) || d_hat == DVec3::ZERO {
+            return DVec3::ZERO;
+        }
+        let g = self.smooth.distribution().g(wi, wo, h);
+        let scale = g * wi.dot(h) / (area * self.cone_solid_angle * h.z * wi.z * wo.z);
+        self.smooth.fresnel().evaluate(wi.dot(h)) * d_hat * scale
     }
 }
 
@@ -305,15 +325,22 @@ impl Bxdf for DiscreteBrdf {
             return 0.0;
         }
         let (wi, wo) = (wi.normalize(), wo.normalize());
-        let points = self.parameters.pdf_points;
+        let (t, b) = orthonormal_basis(wo);
+        let distribution = self.sampler.distribution();
         let mut sum = 0.0;
-        for i in 0..points {
-            let [a, b] = zero_two_point(i as u32);
-            sum += self
-                .sampler
-                .pdf(wi, uniform_in_cone(wo, self.parameters.gamma, a, b));
+        for p in &self.cone_points {
+            // The widened model's density at ω′: D_s(h)(h·n)/(4 ω_i·h), h = (ω_i + ω′)/|·|.
+            let w = p.x * t + p.y * b + p.z * wo;
+            if w.z <= 0.0 {
+                continue;
+            }
+            let h = (wi + w).normalize();
+            let cos = wi.dot(h);
+            if cos > 0.0 {
+                sum += distribution.d(h) * h.z / (4.0 * cos);
+            }
         }
-        sum / points as f64
+        sum / self.cone_points.len() as f64
     }
 }
 
@@ -337,13 +364,20 @@ pub fn uniform_in_cone(axis: DVec3, gamma: f64, u: f64, v: f64) -> DVec3 {
     let one_minus_cos = u * 2.0 * (0.5 * gamma).sin().powi(2);
     let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
     let phi = 2.0 * std::f64::consts::PI * v;
-    // An orthonormal basis around the axis (Duff et al. 2017).
+    let (t, s) = orthonormal_basis(axis);
+    ((1.0 - one_minus_cos) * axis + sin_theta * (phi.cos() * t + phi.sin() * s)).normalize()
+}
+
+/// Two unit vectors completing unit `axis` to a right-handed orthonormal basis (Duff et al.
+/// 2017, "Building an Orthonormal Basis, Revisited").
+fn orthonormal_basis(axis: DVec3) -> (DVec3, DVec3) {
     let sign = 1.0_f64.copysign(axis.z);
     let a = -1.0 / (sign + axis.z);
     let b = axis.x * axis.y * a;
-    let t = DVec3::new(1.0 + sign * axis.x * axis.x * a, sign * b, -sign * axis.x);
-    let s = DVec3::new(b, sign + axis.y * axis.y * a, -axis.y);
-    ((1.0 - one_minus_cos) * axis + sin_theta * (phi.cos() * t + phi.sin() * s)).normalize()
+    (
+        DVec3::new(1.0 + sign * axis.x * axis.x * a, sign * b, -sign * axis.x),
+        DVec3::new(b, sign + axis.y * axis.y * a, -axis.y),
+    )
 }
 
 #[cfg(test)]
