@@ -3,6 +3,10 @@
 //! each cell, pool cells expecting fewer than 5 samples, and test with Pearson's statistic.
 
 use glam::DVec3;
+use glint_brdf::{
+    Bxdf, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MicrofacetBrdf,
+    NormalSampling,
+};
 
 use crate::SplitMix64;
 use crate::counts::chi_square_p_value;
@@ -78,4 +82,110 @@ pub fn chi_square_directions(
 #[must_use]
 pub fn sidak(alpha: f64, tests: usize) -> f64 {
     1.0 - (1.0 - alpha).powf(1.0 / tests as f64)
+}
+
+/// A sampler to test: a name, the BRDF, the incident polar angle, and whether it is the glint
+/// sampler (whose pdf is a convolution, so the test uses coarser bins).
+pub struct SamplerCase {
+    /// What is tested.
+    pub name: String,
+    /// The BRDF whose `sample` and `pdf` are compared.
+    pub brdf: Box<dyn Bxdf + Send + Sync>,
+    /// θ_i in radians.
+    pub theta_i: f64,
+    /// Whether this is the glint sampler.
+    pub glint: bool,
+}
+
+/// Every sampling routine of glint-brdf: smooth Beckmann and GGX (isotropic and anisotropic)
+/// from p(m), GGX from its visible normals, and the glint sampler (α_s = 2α, then the cone;
+/// its pdf with 1024 QMC points, so that the test compares against the density itself), at
+/// incidence from the normal to 85°.
+///
+/// # Panics
+/// Never for the fixed parameters here.
+#[must_use]
+pub fn sampler_cases() -> Vec<SamplerCase> {
+    let angles = [0.0, 45f64.to_radians(), 85f64.to_radians()];
+    let roughness = [(0.2, 0.2), (0.6, 0.6), (0.15, 0.5)];
+    let mut cases = Vec::new();
+    for (kind, sampling) in [
+        (DistributionKind::Beckmann, NormalSampling::Distribution),
+        (DistributionKind::Ggx, NormalSampling::Distribution),
+        (DistributionKind::Ggx, NormalSampling::Visible),
+    ] {
+        for (ax, ay) in roughness {
+            let d = Microfacet::new(kind, ax, ay).expect("valid roughness");
+            for &theta_i in &angles {
+                let brdf = MicrofacetBrdf::new(d, Fresnel::None, sampling).expect("valid BRDF");
+                cases.push(SamplerCase {
+                    name: format!(
+                        "{kind:?} {sampling:?} α ({ax}, {ay}) θ {:.0}°",
+                        theta_i.to_degrees()
+                    ),
+                    brdf: Box::new(brdf),
+                    theta_i,
+                    glint: false,
+                });
+            }
+        }
+    }
+    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for &theta_i in &angles {
+            let mut parameters =
+                GlintParameters::new(Microfacet::new(kind, 0.15, 0.15).expect("valid roughness"));
+            parameters.gamma = 3f64.to_radians();
+            parameters.pdf_points = 1024;
+            cases.push(SamplerCase {
+                name: format!("glint {kind:?} α 0.15 γ 3° θ {:.0}°", theta_i.to_degrees()),
+                brdf: Box::new(DiscreteBrdf::new(parameters).expect("valid material")),
+                theta_i,
+                glint: true,
+            });
+        }
+    }
+    cases
+}
+
+impl std::fmt::Debug for SamplerCase {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SamplerCase")
+            .field("name", &self.name)
+            .field("theta_i", &self.theta_i)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Runs the chi-square test of one case with `samples` samples (bins chosen by the case).
+#[must_use]
+pub fn test_sampler(case: &SamplerCase, samples: usize, seed: u64) -> ChiSquareOutcome {
+    let wi = crate::geometry::direction(case.theta_i, 0.3);
+    let mut rng = SplitMix64::new(seed ^ 0x5A3);
+    let (theta_bins, phi_bins, sub) = if case.glint { (24, 48, 3) } else { (48, 96, 4) };
+    chi_square_directions(
+        |u| case.brdf.sample(wi, rng.uniform(), u).map(|s| s.wo),
+        |wo| case.brdf.pdf(wi, wo),
+        samples,
+        theta_bins,
+        phi_bins,
+        sub,
+        seed,
+    )
+}
+
+/// ∫ over the upper hemisphere of `f` by a midpoint rule in (t, φ) with cos θ = 1 − t², which
+/// puts points where narrow lobes around the normal live (n_t × n_phi points).
+pub fn hemisphere_integral(f: impl Fn(DVec3) -> f64, n_t: usize, n_phi: usize) -> f64 {
+    let mut sum = 0.0;
+    for i in 0..n_t {
+        let t = (i as f64 + 0.5) / n_t as f64;
+        let cos = 1.0 - t * t;
+        let weight = 2.0 * t / n_t as f64 * std::f64::consts::TAU / n_phi as f64;
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
+        for j in 0..n_phi {
+            let phi = (j as f64 + 0.5) / n_phi as f64 * std::f64::consts::TAU;
+            sum += f(DVec3::new(sin * phi.cos(), sin * phi.sin(), cos)) * weight;
+        }
+    }
+    sum
 }

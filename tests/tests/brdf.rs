@@ -10,27 +10,8 @@ use glint_brdf::{
 };
 use glint_tests::SplitMix64;
 use glint_tests::geometry::direction;
-use glint_tests::sampling::{chi_square_directions, sidak};
+use glint_tests::sampling::{hemisphere_integral, sampler_cases, sidak, test_sampler};
 use glint_tree::{Footprint, QueryScratch};
-
-/// ∫ over the upper hemisphere of `f` by a product Gauss–Legendre-like midpoint rule in
-/// (cos θ, φ) refined towards the normal (substitution cos θ = 1 − t², which concentrates
-/// points where narrow lobes live).
-fn hemisphere_integral(f: impl Fn(DVec3) -> f64, n_t: usize, n_phi: usize) -> f64 {
-    let mut sum = 0.0;
-    for i in 0..n_t {
-        let t = (i as f64 + 0.5) / n_t as f64;
-        let cos = 1.0 - t * t;
-        let jacobian = 2.0 * t / n_t as f64;
-        let sin = (1.0 - cos * cos).max(0.0).sqrt();
-        for j in 0..n_phi {
-            let phi = (j as f64 + 0.5) / n_phi as f64 * 2.0 * PI;
-            sum += f(DVec3::new(sin * phi.cos(), sin * phi.sin(), cos)) * jacobian * 2.0 * PI
-                / n_phi as f64;
-        }
-    }
-    sum
-}
 
 fn distributions() -> Vec<Microfacet> {
     let mut all = Vec::new();
@@ -97,72 +78,18 @@ fn smooth_brdf_is_reciprocal_and_conserves_energy() {
     }
 }
 
-/// Chi-square of every sampling routine against its pdf: smooth Beckmann and GGX, isotropic
-/// and anisotropic, GGX visible normals, and the glint sampler (widened α, then the cone), at
-/// incidence from normal to 85°. Family-wise significance 1%, Šidák-corrected.
+/// Chi-square of every sampling routine against its pdf (`sampler_cases`: smooth Beckmann and
+/// GGX, isotropic and anisotropic, GGX visible normals, the glint sampler; incidence from normal
+/// to 85°), family-wise significance 1%, Šidák-corrected; the pdf integrates to ≤ 1 and to the
+/// fraction of valid samples.
 #[test]
 fn samplers_match_their_pdfs() {
-    let angles = [0.0, 45f64.to_radians(), 85f64.to_radians()];
-    let roughness = [(0.2, 0.2), (0.6, 0.6), (0.15, 0.5)];
-    let mut cases: Vec<(String, Box<dyn Bxdf>, f64)> = Vec::new();
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
-        for (ax, ay) in roughness {
-            let d = Microfacet::new(kind, ax, ay).unwrap();
-            for &theta in &angles {
-                let brdf =
-                    MicrofacetBrdf::new(d, Fresnel::None, NormalSampling::Distribution).unwrap();
-                cases.push((
-                    format!("{kind:?} α ({ax}, {ay}) θ {theta:.2}"),
-                    Box::new(brdf),
-                    theta,
-                ));
-            }
-        }
-    }
-    for (ax, ay) in roughness {
-        let d = Microfacet::new(DistributionKind::Ggx, ax, ay).unwrap();
-        for &theta in &angles {
-            let brdf = MicrofacetBrdf::new(d, Fresnel::None, NormalSampling::Visible).unwrap();
-            cases.push((
-                format!("GGX visible α ({ax}, {ay}) θ {theta:.2}"),
-                Box::new(brdf),
-                theta,
-            ));
-        }
-    }
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
-        for &theta in &[0.0, 60f64.to_radians()] {
-            let mut parameters = GlintParameters::new(Microfacet::new(kind, 0.15, 0.15).unwrap());
-            parameters.gamma = 3f64.to_radians();
-            // The test's expected counts need the density itself: a fine QMC rule.
-            parameters.pdf_points = 1024;
-            let brdf = DiscreteBrdf::new(parameters).unwrap();
-            cases.push((
-                format!("glint {kind:?} θ {theta:.2}"),
-                Box::new(brdf),
-                theta,
-            ));
-        }
-    }
+    let cases = sampler_cases();
     let threshold = sidak(0.01, cases.len());
-    for (i, (name, brdf, theta)) in cases.iter().enumerate() {
-        let wi = direction(*theta, 0.3);
-        let mut rng = SplitMix64::new(1000 + i as u64);
-        let glint = name.starts_with("glint");
-        let (samples, theta_bins, phi_bins, sub) = if glint {
-            (100_000, 24, 48, 3)
-        } else {
-            (200_000, 48, 96, 4)
-        };
-        let outcome = chi_square_directions(
-            |u| brdf.sample(wi, rng.uniform(), u).map(|s| s.wo),
-            |wo| brdf.pdf(wi, wo),
-            samples,
-            theta_bins,
-            phi_bins,
-            sub,
-            7 + i as u64,
-        );
+    for (i, case) in cases.iter().enumerate() {
+        let samples = if case.glint { 100_000 } else { 200_000 };
+        let outcome = test_sampler(case, samples, 7 + i as u64);
+        let name = &case.name;
         assert!(
             outcome.p_value > threshold,
             "{name}: p = {} (threshold {threshold:.1e})",

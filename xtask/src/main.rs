@@ -9,6 +9,7 @@
 mod bench;
 mod eval;
 mod validate;
+mod validate_brdf;
 mod validate_counts;
 
 use clap::{Parser, Subcommand};

@@ -1,7 +1,7 @@
 //! `cargo xtask validate`: the model against its definitions, at full size.
 //!
-//! Suites so far: **geometry** (glint-sphere) and **counts** (glint-tree, in
-//! `validate_counts.rs`). Each check prints one line and adds a section to
+//! Suites so far: **geometry** (glint-sphere), **counts** (glint-tree, in
+//! `validate_counts.rs`) and **BRDF** (glint-brdf, in `validate_brdf.rs`). Each check prints one line and adds a section to
 //! `report.md`; the command fails if any check fails.
 
 use std::fmt::Write as _;
@@ -63,7 +63,7 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
     let mut report = String::new();
     writeln!(
         report,
-        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree).\n",
+        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf).\n",
         if quick { "quick" } else { "full" }
     )?;
     let checks = [
@@ -75,6 +75,9 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
         crate::validate_counts::multinomial_splits(quick, &mut report)?,
         crate::validate_counts::additivity_and_determinism(quick, &mut report)?,
         crate::validate_counts::coherence(quick, &mut report)?,
+        crate::validate_brdf::samplers(quick, &mut report)?,
+        crate::validate_brdf::energy(&mut report)?,
+        crate::validate_brdf::convergence(quick, &mut report)?,
     ];
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("report.md");
