@@ -368,3 +368,28 @@ fn expected_count_matches_independent_integral() {
         );
     }
 }
+
+/// With ε > 0, a footprint over many tiles costs no more than one over a few: every tile holds
+/// the same particles, so whole tiles count in aggregate (the expected total sets Eq. 10's
+/// scale), and the answer is that expectation to within ε.
+#[test]
+fn many_tiles_cost_no_more_than_a_few() {
+    let tree = beckmann_tree(0.1, 1_000_000_000, 1, 0.1, MultinomialMode::Exact);
+    let conic = near_specular_conic(1.0);
+    let mut scratch = QueryScratch::new();
+    let nodes = |side: f64, scratch: &mut QueryScratch| {
+        let f = square(DVec2::new(0.3, 0.6), side);
+        let r = tree.query(&f, &conic, scratch);
+        let expected = tree.expected_count(&f, &conic, scratch);
+        assert!(
+            (r.count - expected).abs() <= 0.1 * expected,
+            "side {side}: {} vs {expected}",
+            r.count
+        );
+        r.nodes_visited
+    };
+    let few = nodes(2.0, &mut scratch);
+    for side in [10.0, 100.0, 1000.0] {
+        assert!(nodes(side, &mut scratch) <= few.max(16), "side {side}");
+    }
+}

@@ -51,6 +51,9 @@ pub const LEAF_PARTICLES: u64 = 8;
 /// being placed one by one (only degenerate queries get there).
 const MAX_EXPLICIT_PARTICLES: u64 = 256;
 
+/// Queries still running after this many nodes take the expected count as Eq. 10's scale.
+const SCALE_AFTER_NODES: u32 = 512;
+
 /// Stream purposes: separate streams of one node.
 const PURPOSE_SPLIT: u32 = 0;
 const PURPOSE_AREA: u32 = 1; // + channel
@@ -448,11 +451,23 @@ impl CountTree {
         if footprint.is_degenerate() {
             return self.result(0.0, area_sums, visited, truncated);
         }
-        let queue = &mut scratch.queue;
+        let QueryScratch { queue, cells } = scratch;
         queue.clear();
         queue.push_back(self.root());
+        // Eq. 10 compares a node's spread with ε times the running count. A footprint of a
+        // tile or more finds nothing fully inside for many levels (its wrapped edges cut every
+        // coarse box), and a dense query may also run long on a zero count; there the expected
+        // total N·A·∫p (what the count converges to) is the scale: from the start for
+        // footprints of a tile or more, after SCALE_AFTER_NODES nodes for the others.
+        let mut scale_floor = None;
         while let Some(node) = queue.pop_front() {
             visited += 1;
+            if scale_floor.is_none()
+                && self.config.epsilon > 0.0
+                && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
+            {
+                scale_floor = Some(self.integral_scale(footprint, conic, cells));
+            }
             if node.count == 0 {
                 continue;
             }
@@ -480,11 +495,19 @@ impl CountTree {
                 continue;
             }
             let near_uniform = !self.quadrature.has_entry(&node.cell);
-            // Eq. 10 assumes the node's particles uniform over the part of it that the query
-            // cuts: always true in space, in direction only where p is near-uniform.
-            if self.config.epsilon > 0.0 && count > 0.0 && (near_uniform || directions_inside) {
-                let share = self.overlap_share(&node, footprint, conic, spatial, directions_inside);
-                if share.deviation(node.count) < self.config.epsilon * count {
+            // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
+            // query: in space they are uniform; in direction the fraction is the overlap's share
+            // of the triangle where p is near-uniform (no table entry, the paper's condition),
+            // and elsewhere ∫p over the overlap by the table, divided by ∫p over the triangle.
+            let threshold = self.config.epsilon * count.max(scale_floor.unwrap_or(0.0));
+            // Off the paper's condition the directional fraction costs a descent of the table:
+            // only try when a bound on the spread (Popoviciu: a contribution in [0, hi] has
+            // variance ≤ hi²/4) already passes.
+            let cheap = near_uniform || directions_inside;
+            if threshold > 0.0 && (cheap || spread_bound(node.count, spatial) < threshold) {
+                let share =
+                    self.overlap_share(&node, footprint, conic, spatial, directions_inside, cells);
+                if share.deviation(node.count) < threshold {
                     count += node.count as f64 * share.mean;
                     accumulate(&mut area_sums, node.areas, share.mean);
                     continue;
@@ -496,13 +519,13 @@ impl CountTree {
                 || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)
             {
                 // The work guard, or the depth guard on a crowded node: the expected share.
-                let share = self.overlap_share(&node, footprint, conic, spatial, directions_inside);
+                let share =
+                    self.overlap_share(&node, footprint, conic, spatial, directions_inside, cells);
                 count += node.count as f64 * share.mean;
                 accumulate(&mut area_sums, node.areas, share.mean);
                 continue;
             }
-            if (node.count <= LEAF_PARTICLES && near_uniform) || node.depth >= self.config.max_depth
-            {
+            if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
                 let (found, areas) = self.count_leaf(&node, footprint, conic);
                 count += found;
                 accumulate(&mut area_sums, areas, 1.0);
@@ -541,6 +564,7 @@ impl CountTree {
         conic: &SphericalConic,
         spatial: BoxOverlap,
         directions_inside: bool,
+        cells: &mut Vec<DirectionalCell>,
     ) -> OverlapShare {
         let box_size = node.box_size();
         let multiplicity = if spatial.partial == 0 {
@@ -548,11 +572,24 @@ impl CountTree {
         } else {
             footprint.overlap_area(node.box_min, box_size) / (box_size * box_size)
         };
-        let directional = match (&node.cell.triangle, directions_inside) {
-            (_, true) => 1.0,
-            (None, false) => self.hemisphere_fraction(conic),
-            (Some(t), false) => {
-                overlap_solid_angle(t, conic, self.config.overlap) / node.solid_angle
+        let directional = if directions_inside {
+            1.0
+        } else if let (Some(t), false) =
+            (&node.cell.triangle, self.quadrature.has_entry(&node.cell))
+        {
+            overlap_solid_angle(t, conic, self.config.overlap) / node.solid_angle
+        } else {
+            let inside =
+                self.integral_over_conic_within(&node.cell, conic, self.config.overlap, cells);
+            let total = self.quadrature.integral_with_solid_angle(
+                &node.cell,
+                node.solid_angle,
+                self.density.as_ref(),
+            );
+            if total > 0.0 {
+                (inside / total).clamp(0.0, 1.0)
+            } else {
+                0.0
             }
         };
         // A particle contributes m(x)·[normal in the conic]: m ∈ [inside, inside + partial] has
@@ -570,12 +607,6 @@ impl CountTree {
             variance: directional * spread
                 + multiplicity * multiplicity * directional * (1.0 - directional),
         }
-    }
-
-    /// The conic's share of the hemisphere's particles (only for a depth guard of 0).
-    fn hemisphere_fraction(&self, conic: &SphericalConic) -> f64 {
-        let mut cells = Vec::new();
-        self.integral_over_conic(conic, &mut cells) / self.quadrature.hemisphere_integral()
     }
 
     /// Counts a leaf's particles one by one; returns (count, area sums).
@@ -636,22 +667,63 @@ impl CountTree {
         conic: &SphericalConic,
         scratch: &mut QueryScratch,
     ) -> f64 {
+        self.expected_count_with(footprint, conic, &mut scratch.cells)
+    }
+
+    fn expected_count_with(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        cells: &mut Vec<DirectionalCell>,
+    ) -> f64 {
         if footprint.is_degenerate() {
             return 0.0;
         }
-        let integral = self.integral_over_conic(conic, &mut scratch.cells);
+        let integral = self.integral_over_conic_within(
+            &DirectionalCell::HEMISPHERE,
+            conic,
+            OverlapMethod::Precise,
+            cells,
+        );
         self.config.particles as f64 * footprint.area() * integral
             / self.quadrature.hemisphere_integral()
     }
 
-    /// ∫ p over the conic: descend the directional cells that have table entries.
-    fn integral_over_conic(&self, conic: &SphericalConic, stack: &mut Vec<DirectionalCell>) -> f64 {
+    /// The expected count as Eq. 10's scale: the material's overlap method suffices.
+    fn integral_scale(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        cells: &mut Vec<DirectionalCell>,
+    ) -> f64 {
+        let integral = self.integral_over_conic_within(
+            &DirectionalCell::HEMISPHERE,
+            conic,
+            self.config.overlap,
+            cells,
+        );
+        self.config.particles as f64 * footprint.area() * integral
+            / self.quadrature.hemisphere_integral()
+    }
+
+    /// ∫ p over cell ∩ conic: descend the cells that have table entries; elsewhere take the
+    /// cell's integral times its overlap fraction (p near-uniform there).
+    fn integral_over_conic_within(
+        &self,
+        start: &DirectionalCell,
+        conic: &SphericalConic,
+        method: OverlapMethod,
+        stack: &mut Vec<DirectionalCell>,
+    ) -> f64 {
         stack.clear();
-        stack.extend(DirectionalCell::HEMISPHERE.children());
+        stack.push(*start);
         let mut total = 0.0;
         let density = self.density.as_ref();
         while let Some(cell) = stack.pop() {
-            let triangle = cell.triangle.expect("below the hemisphere");
+            let Some(triangle) = cell.triangle else {
+                stack.extend(cell.children());
+                continue;
+            };
             match conic.classify(&triangle) {
                 Classification::Disjoint => {}
                 Classification::TriangleInsideConic => {
@@ -659,14 +731,21 @@ impl CountTree {
                 }
                 _ if self.quadrature.has_entry(&cell) => stack.extend(cell.children()),
                 _ => {
-                    let fraction = overlap_solid_angle(&triangle, conic, OverlapMethod::Precise)
-                        / cell.solid_angle();
+                    let fraction =
+                        overlap_solid_angle(&triangle, conic, method) / cell.solid_angle();
                     total += self.quadrature.integral(&cell, density) * fraction;
                 }
             }
         }
         total
     }
+}
+
+/// An upper bound on Eq. 10's spread √(n·Var) that needs no overlap computation: a particle
+/// contributes m(x)·[normal in the conic] ∈ [0, hi], so Var ≤ hi²/4 (Popoviciu).
+fn spread_bound(particles: u64, spatial: BoxOverlap) -> f64 {
+    let high = (spatial.inside + spatial.partial) as f64;
+    0.5 * high * (particles as f64).sqrt()
 }
 
 /// sums += factor · areas, per channel.
