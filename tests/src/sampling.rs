@@ -98,7 +98,7 @@ pub struct SamplerCase {
 }
 
 /// Every sampling routine of glint-brdf: smooth Beckmann and GGX (isotropic and anisotropic)
-/// from p(m), GGX from its visible normals, and the glint sampler (α_s = 2α, then the cone;
+/// from p(m) and from their visible normals, and the glint sampler (α_s = 2α, then the cone;
 /// its pdf with 1024 QMC points, so that the test compares against the density itself), at
 /// incidence from the normal to 85°.
 ///
@@ -112,6 +112,7 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
     for (kind, sampling) in [
         (DistributionKind::Beckmann, NormalSampling::Distribution),
         (DistributionKind::Ggx, NormalSampling::Distribution),
+        (DistributionKind::Beckmann, NormalSampling::Visible),
         (DistributionKind::Ggx, NormalSampling::Visible),
     ] {
         for (ax, ay) in roughness {

@@ -41,7 +41,8 @@ pub enum NormalSampling {
     /// From p(m) = D(m)(m·n), the standard method (Walter et al. 2007).
     #[default]
     Distribution,
-    /// From the distribution of normals visible from ω_i (Heitz 2018); GGX only.
+    /// From the distribution of normals visible from ω_i (Heitz 2018 for GGX, Heitz and
+    /// d'Eon 2014 for Beckmann).
     Visible,
 }
 
@@ -183,16 +184,25 @@ impl Microfacet {
         self.particle_density(m)
     }
 
-    /// A normal drawn from the visible normals seen from ω_i (GGX; Heitz 2018, "Sampling the
-    /// GGX Distribution of Visible Normals"): stretch ω_i to the unit-roughness configuration,
-    /// sample the projected hemisphere, unstretch.
+    /// A normal drawn from the visible normals seen from ω_i.
     ///
-    /// # Errors
-    /// [`BrdfError::VisibleSamplingUnsupported`] for Beckmann.
-    pub fn sample_visible_normal(&self, wi: DVec3, u: [f64; 2]) -> Result<DVec3, BrdfError> {
-        if self.kind != DistributionKind::Ggx {
-            return Err(BrdfError::VisibleSamplingUnsupported);
+    /// GGX: Heitz 2018, "Sampling the GGX Distribution of Visible Normals": stretch ω_i to the
+    /// unit-roughness configuration, sample the projected hemisphere, unstretch.
+    ///
+    /// Beckmann: Heitz and d'Eon 2014, slope space: stretch ω_i, then for unit roughness and
+    /// μ = cot θ the visible slope along the incident azimuth has density ∝ (μ − x)e^(−x²) on
+    /// x < μ, with CDF ∝ μ(1 + erf x)/2 + e^(−x²)/(2√π), inverted by bisection; the
+    /// perpendicular slope is Gaussian (an inverted erf); rotate to the incident azimuth,
+    /// unstretch, and m = normalize(−s_x, −s_y, 1).
+    #[must_use]
+    pub fn sample_visible_normal(&self, wi: DVec3, u: [f64; 2]) -> DVec3 {
+        match self.kind {
+            DistributionKind::Ggx => self.sample_visible_ggx(wi, u),
+            DistributionKind::Beckmann => self.sample_visible_beckmann(wi, u),
         }
+    }
+
+    fn sample_visible_ggx(&self, wi: DVec3, u: [f64; 2]) -> DVec3 {
         let v = DVec3::new(self.alpha_x * wi.x, self.alpha_y * wi.y, wi.z).normalize();
         let length2 = v.x * v.x + v.y * v.y;
         let t1 = if length2 > 0.0 {
@@ -207,7 +217,34 @@ impl Microfacet {
         let s = 0.5 * (1.0 + v.z);
         let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
         let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * v;
-        Ok(DVec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(1e-12)).normalize())
+        DVec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(1e-12)).normalize()
+    }
+
+    fn sample_visible_beckmann(&self, wi: DVec3, u: [f64; 2]) -> DVec3 {
+        let v = DVec3::new(self.alpha_x * wi.x, self.alpha_y * wi.y, wi.z).normalize();
+        let sin_theta = (v.x * v.x + v.y * v.y).sqrt();
+        let (cos_phi, sin_phi) = if sin_theta > 0.0 {
+            (v.x / sin_theta, v.y / sin_theta)
+        } else {
+            (1.0, 0.0)
+        };
+        // Slopes beyond ±6 carry less than 1e-16 of the Gaussian's mass.
+        let mu = if sin_theta > 0.0 {
+            (v.z / sin_theta).min(1e8)
+        } else {
+            1e8
+        };
+        let sqrt_pi = std::f64::consts::PI.sqrt();
+        let numerator = |x: f64| mu * 0.5 * (1.0 + erf(x)) + (-x * x).exp() / (2.0 * sqrt_pi);
+        let upper = mu.min(6.0);
+        let target = u[0] * numerator(upper);
+        let slope_along = bisect(|x| numerator(x) - target, -6.0, upper);
+        let slope_across = bisect(|y| erf(y) - (2.0 * u[1] - 1.0), -6.0, 6.0);
+        let (x, y) = (
+            cos_phi * slope_along - sin_phi * slope_across,
+            sin_phi * slope_along + cos_phi * slope_across,
+        );
+        DVec3::new(-self.alpha_x * x, -self.alpha_y * y, 1.0).normalize()
     }
 
     /// The density of [`Microfacet::sample_visible_normal`]: G1(ω_i, m)·max(0, ω_i·m)·D(m)/ω_i.z.
@@ -218,6 +255,22 @@ impl Microfacet {
         }
         self.g1(wi, m) * wi.dot(m).max(0.0) * self.d(m) / wi.z
     }
+}
+
+/// The root of increasing `f` in [lo, hi] by bisection to double precision.
+fn bisect(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
+    for _ in 0..64 {
+        let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        if f(mid) < 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// The error function, to ~1e-15: for |x| < 2.5 the series

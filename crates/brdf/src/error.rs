@@ -10,8 +10,6 @@ pub enum BrdfError {
         /// The rejected value.
         alpha: f64,
     },
-    /// Visible-normal sampling is implemented for GGX only.
-    VisibleSamplingUnsupported,
     /// A Fresnel parameter (η or k) was not finite or not positive (k may be 0).
     InvalidFresnel,
     /// The cone radius γ must be finite and in (0, 60°].
@@ -41,9 +39,6 @@ impl fmt::Display for BrdfError {
                     f,
                     "roughness alpha = {alpha} is invalid: it must be finite and in [1e-4, 1]"
                 )
-            }
-            Self::VisibleSamplingUnsupported => {
-                write!(f, "visible-normal sampling is implemented for GGX only")
             }
             Self::InvalidFresnel => {
                 write!(f, "Fresnel parameters must be finite, eta > 0 and k >= 0")

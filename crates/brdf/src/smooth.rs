@@ -58,17 +58,12 @@ impl MicrofacetBrdf {
     /// The BRDF of `distribution` with `fresnel`, sampling normals by `sampling`.
     ///
     /// # Errors
-    /// Invalid Fresnel parameters, or visible-normal sampling of a Beckmann distribution.
+    /// Invalid Fresnel parameters.
     pub fn new(
         distribution: Microfacet,
         fresnel: Fresnel,
         sampling: NormalSampling,
     ) -> Result<Self, BrdfError> {
-        if sampling == NormalSampling::Visible
-            && distribution.kind() != crate::DistributionKind::Ggx
-        {
-            return Err(BrdfError::VisibleSamplingUnsupported);
-        }
         Ok(Self {
             distribution,
             fresnel: fresnel.validated()?,
@@ -118,7 +113,7 @@ impl Bxdf for MicrofacetBrdf {
         }
         let m = match self.sampling {
             NormalSampling::Distribution => self.distribution.sample_normal(u),
-            NormalSampling::Visible => self.distribution.sample_visible_normal(wi, u).ok()?,
+            NormalSampling::Visible => self.distribution.sample_visible_normal(wi, u),
         };
         let wo = reflect(wi, m);
         if !above_horizon(wo) || wi.dot(m) <= 0.0 {
