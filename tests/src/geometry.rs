@@ -2,7 +2,7 @@
 //!
 //! A [`ConicCase`] is a conic (ω_i, ω_o, γ) and a triangle, drawn to cover the extremes of
 //! DESIGN.md: γ log-uniform from 0.01° to 60°, directions 1e-6 from the horizon, ω_i = ω_o,
-//! ω_i·ω_o at and around −cos γ, ω_i = −ω_o, triangles from an octant down to 1e-5 rad edges,
+//! ω_i·ω_o at and around −cos γ, ω_i = −ω_o and within 1e-12 of it, triangles from an octant down to 1e-5 rad edges,
 //! count-tree triangles (octants subdivided, vertices on the horizon), triangles dipping below
 //! the horizon, and triangles placed near the conic so that classification is interesting.
 
@@ -101,10 +101,16 @@ impl ConicCase {
                     direction(half_pi - (total - ei), phi + std::f64::consts::PI),
                 )
             }
-            // ω_i = −ω_o (ω_o below the horizon: the conic is defined for any directions).
+            // ω_i = −ω_o, exactly or within 1e-12..1e-3 (ω_o below the horizon: the conic is
+            // defined for any directions).
             6 => {
                 let w = upper(u[2], u[3]);
-                (w, -w)
+                let offset = if u[4] < 0.3 {
+                    0.0
+                } else {
+                    10f64.powf(-3.0 - 9.0 * u[5])
+                };
+                (w, (-w + offset * perpendicular(w)).normalize())
             }
             // Anywhere on the sphere.
             _ => (

@@ -22,11 +22,13 @@
 //! - Elliptic, valid set E⁺ convex: all three vertices in E⁺ ⇒ T ⊂ E⁺ (convexity). Otherwise, if
 //!   no edge meets E⁺, then E⁺ (connected) is entirely inside or outside T, decided by whether
 //!   T contains the cap's axis ẑ.
-//! - Hyperbolic, valid set H \ D⁺ with D⁺ ⊂ H: T ∩ (H \ D⁺) = ∅ iff T ⊂ complement(H) or
-//!   T ⊂ D⁺ (the two closed sets are disjoint and T is connected); each is a vertex test by
-//!   convexity. T ⊂ H \ D⁺ iff all vertices are in H, no edge meets D⁺ and the axis ŷ of D⁺ is
-//!   not in T. The valid set always contains a whole half great circle (on m·ω_i = 0, which D⁺
-//!   never reaches) so it is never inside a triangle.
+//! - Hyperbolic, valid set H \ D⁺ with D⁺ ⊂ closure(H) (⊂ H when k1 < 0): T ⊂ complement(H)
+//!   or T ⊂ D⁺ each make T ∩ (H \ D⁺) = ∅ (vertex tests, by convexity; sufficient conditions,
+//!   and for k1 < 0 also necessary, as the two closed sets are then disjoint and T connected).
+//!   T ⊂ H \ D⁺ iff all vertices are in H, no edge meets D⁺ and the axis ŷ of D⁺ is not in T.
+//!   The closure of the valid set contains antipodal points (on the great circle m·ω_i = 0,
+//!   or, when ω_i = n, on the horizon), so it is never inside a triangle smaller than a
+//!   hemisphere.
 //! - The surface condition m·n > 0: a triangle whose vertices all have z ≥ 0 lies in the closed
 //!   upper hemisphere and the condition removes only its boundary; otherwise it is never
 //!   "inside", and "disjoint" is decided against the larger set without it (still never wrong).

@@ -38,16 +38,20 @@
 //! - k1 ≤ 0 ([`ConicKind::Hyperbolic`], ω_i·ω_o ≤ −cos γ, i.e. −ω_i inside the cone around
 //!   ω_o): {q < 0} is a band around the sphere, the complement of the two convex caps
 //!   D^± = {q ≥ 0, ±y ≥ 0} around ±ŷ. The valid set is the hemisphere H = {m·ω_i > 0} minus D⁺.
-//!   (D⁺ lies inside H and D⁻ outside it: on the great circle m·ω_i = 0, z = −(b/a)y, and
-//!   λ2·y² ≥ z² would need cot(γ/2) ≥ tan(θ/2), i.e. θ + γ ≤ π.)
+//!   (D⁺ lies inside H and D⁻ outside it when k1 < 0: on the great circle m·ω_i = 0,
+//!   z = −(b/a)y, and λ2·y² ≥ z² would need cot(γ/2) ≥ tan(θ/2), i.e. θ + γ ≤ π. At k1 = 0, D⁺
+//!   touches that great circle and lies in the closure of H.)
 //! - The transition k1 = 0 (ω_i·ω_o = −cos γ) belongs to the hyperbolic description, which is
 //!   exact there too.
 //!
 //! # Degenerate frames
 //! When ω_i = ω_o the vector ŷ is undefined, but then λ1 = λ2 and any unit ŷ ⟂ ẑ gives the same
 //! conic. When ω_i = −ω_o, ẑ is undefined, but then k1 = −s, the form is symmetric in x and z,
-//! and any unit ẑ ⟂ ω_i serves. Near these cases the computed directions lose precision only in
-//! the directions where the form is (nearly) symmetric, so the conic stays accurate.
+//! and any unit ẑ ⟂ ω_i serves. Near these cases the frame is built from the longer of
+//! ω_i ± ω_o, and the shorter is orthogonalized against it: its rounding error then only turns
+//! the frame within the plane where the form is nearly symmetric, so the conic stays accurate
+//! (building ẑ from a short ω_i + ω_o and orthogonalizing ŷ against it would instead turn the
+//! frame in the y–z plane, where the coefficients 1 − s and −s differ, by ~1e-16/|ω_i + ω_o|).
 
 use glam::DVec3;
 
@@ -96,23 +100,27 @@ impl SphericalConic {
         let difference = wi - wo;
         let sum_length = sum.length();
         let difference_length = difference.length();
-        // Below this length a vector names no reliable direction (see "Degenerate frames").
+        // Below this length a vector names no direction (see "Degenerate frames").
         const NO_DIRECTION: f64 = 1e-150;
-        let z_axis = if sum_length > NO_DIRECTION {
-            sum / sum_length
-        } else {
-            any_perpendicular(wi)
-        };
-        let y_axis = if difference_length > NO_DIRECTION {
-            // Gram–Schmidt against ẑ: exact orthogonality holds only for exactly unit ω_i, ω_o.
-            let y = difference - difference.dot(z_axis) * z_axis;
-            if y.length() > NO_DIRECTION {
-                y.normalize()
+        // The longer of ω_i ± ω_o keeps full precision; the shorter is Gram–Schmidted against
+        // it. Then the shorter's rounding error only rotates the frame about the longer axis,
+        // in the plane where the form is nearly symmetric (x–y near ω_i = ω_o, where
+        // k1 ≈ k2; x–z near ω_i = −ω_o, where k1 ≈ −s), so it perturbs q by ~1e-16 times
+        // the small eigenvalue gap instead of 1e-16 / |ω_i ± ω_o|.
+        let orthogonalized = |v: DVec3, against: DVec3, fallback: DVec3| {
+            let w = v - v.dot(against) * against;
+            if w.length() > NO_DIRECTION {
+                w.normalize()
             } else {
-                any_perpendicular(z_axis)
+                fallback
             }
+        };
+        let (y_axis, z_axis) = if sum_length >= difference_length {
+            let z = sum / sum_length;
+            (orthogonalized(difference, z, any_perpendicular(z)), z)
         } else {
-            any_perpendicular(z_axis)
+            let y = difference / difference_length;
+            (y, orthogonalized(sum, y, any_perpendicular(y)))
         };
         let x_axis = y_axis.cross(z_axis);
 
@@ -331,6 +339,32 @@ mod tests {
         };
         assert!(c.contains_by_reflection(m_in) && c.contains(m_in));
         assert!(!c.contains_by_reflection(m_out) && !c.contains(m_out));
+    }
+
+    /// Near ω_i = −ω_o the frame must not turn in the plane where the form is asymmetric:
+    /// normals reflecting ω_i to 1e-6 inside or outside the cone's rim are classified right.
+    #[test]
+    fn accurate_when_wi_is_nearly_minus_wo() {
+        let wi = dir(60.0, 10.0);
+        let gamma = 1f64.to_radians();
+        let perpendicular = any_perpendicular(wi);
+        for offset in [1e-3, 1e-6, 1e-9, 1e-12] {
+            let wo = (-wi + offset * perpendicular).normalize();
+            let c = SphericalConic::new(wi, wo, gamma).unwrap();
+            let rim_axis = any_perpendicular(wo);
+            for k in 0..64 {
+                let angle = f64::from(k) / 64.0 * std::f64::consts::TAU;
+                let side = rim_axis * angle.cos() + wo.cross(rim_axis) * angle.sin();
+                for (scale, inside) in [(1.0 - 1e-6, true), (1.0 + 1e-6, false)] {
+                    let g = gamma * scale;
+                    let reflected = wo * g.cos() + side * g.sin();
+                    let m = (wi + reflected).normalize();
+                    if m.z > 1e-3 && m.dot(wi) > 1e-3 {
+                        assert_eq!(c.contains(m), inside, "offset {offset}, angle {angle}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
