@@ -503,8 +503,11 @@ impl CountTree {
             // Off the paper's condition the directional fraction costs a descent of the table:
             // only try when a bound on the spread (Popoviciu: a contribution in [0, hi] has
             // variance ≤ hi²/4) already passes.
+            // The descent is only worth it once a query has proved long (the scale floor is
+            // active); before that the paper's condition decides, as in Alg. 1.
             let cheap = near_uniform || directions_inside;
-            if threshold > 0.0 && (cheap || spread_bound(node.count, spatial) < threshold) {
+            let descend = scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
+            if threshold > 0.0 && (cheap || descend) {
                 let share =
                     self.overlap_share(&node, footprint, conic, spatial, directions_inside, cells);
                 if share.deviation(node.count) < threshold {
