@@ -43,7 +43,7 @@
 //! mapped area-uniformly onto the cone.
 
 use glam::DVec3;
-use glint_sphere::SphericalConic;
+use glint_sphere::{ConeRadius, SphericalConic};
 use glint_tree::{
     CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch,
     expected_conic_solid_angle,
@@ -131,6 +131,8 @@ pub struct DiscreteBrdf {
     cone_solid_angle: f64,
     /// The pdf's QMC points in the cone's own frame (axis +z), computed once.
     cone_points: Vec<DVec3>,
+    /// γ with its trigonometry, so that building a query's conic needs none.
+    cone: ConeRadius,
 }
 
 impl DiscreteBrdf {
@@ -191,6 +193,7 @@ impl DiscreteBrdf {
             sampler,
             cone_solid_angle: 4.0 * std::f64::consts::PI * (0.5 * gamma).sin().powi(2),
             cone_points,
+            cone: ConeRadius::new(gamma).map_err(|_| BrdfError::InvalidConeRadius { gamma })?,
         })
     }
 
@@ -233,7 +236,7 @@ impl DiscreteBrdf {
             return zero;
         }
         let (wi, wo) = (wi.normalize(), wo.normalize());
-        let Ok(conic) = SphericalConic::new(wi, wo, self.parameters.gamma) else {
+        let Ok(conic) = SphericalConic::with_cone(wi, wo, &self.cone) else {
             return zero;
         };
         let result = self.tree.query(footprint, &conic, scratch);
@@ -267,7 +270,7 @@ impl DiscreteBrdf {
             return DVec3::ZERO;
         }
         let (wi, wo) = (wi.normalize(), wo.normalize());
-        let Ok(conic) = SphericalConic::new(wi, wo, self.parameters.gamma) else {
+        let Ok(conic) = SphericalConic::with_cone(wi, wo, &self.cone) else {
             return DVec3::ZERO;
         };
         let d_hat = DVec3::from_array(self.tree.query(footprint, &conic, scratch).d_hat);

@@ -57,6 +57,38 @@ use glam::DVec3;
 
 use crate::error::{SphereError, unit_direction};
 
+/// A cone radius γ with its half-angle sine and cosine, validated and computed once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConeRadius {
+    gamma: f64,
+    sin_half: f64,
+    cos_half: f64,
+}
+
+impl ConeRadius {
+    /// γ in radians.
+    ///
+    /// # Errors
+    /// [`SphereError::ConeRadiusOutOfRange`] unless 0 < γ < π.
+    pub fn new(gamma: f64) -> Result<Self, SphereError> {
+        if !(gamma > 0.0 && gamma < std::f64::consts::PI) {
+            return Err(SphereError::ConeRadiusOutOfRange { gamma });
+        }
+        let (sin_half, cos_half) = (0.5 * gamma).sin_cos();
+        Ok(Self {
+            gamma,
+            sin_half,
+            cos_half,
+        })
+    }
+
+    /// γ in radians.
+    #[must_use]
+    pub fn gamma(&self) -> f64 {
+        self.gamma
+    }
+}
+
 /// Which description of the valid set applies (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ConicKind {
@@ -91,11 +123,19 @@ impl SphericalConic {
     /// [`SphereError::NonFiniteDirection`] / [`SphereError::ZeroDirection`] for an unusable
     /// direction; [`SphereError::ConeRadiusOutOfRange`] unless 0 < γ < π.
     pub fn new(wi: DVec3, wo: DVec3, gamma: f64) -> Result<Self, SphereError> {
+        Self::with_cone(wi, wo, &ConeRadius::new(gamma)?)
+    }
+
+    /// [`SphericalConic::new`] for a cone whose trigonometry is already computed: no
+    /// trigonometry per call (for renderers that build a conic per query).
+    ///
+    /// # Errors
+    /// [`SphereError::NonFiniteDirection`] / [`SphereError::ZeroDirection`] for an unusable
+    /// direction.
+    pub fn with_cone(wi: DVec3, wo: DVec3, cone: &ConeRadius) -> Result<Self, SphereError> {
         let wi = unit_direction(wi, "wi")?;
         let wo = unit_direction(wo, "wo")?;
-        if !(gamma > 0.0 && gamma < std::f64::consts::PI) {
-            return Err(SphereError::ConeRadiusOutOfRange { gamma });
-        }
+        let gamma = cone.gamma;
         let sum = wi + wo;
         let difference = wi - wo;
         let sum_length = sum.length();
@@ -124,9 +164,7 @@ impl SphericalConic {
         };
         let x_axis = y_axis.cross(z_axis);
 
-        let half_angle = 0.5 * gamma;
-        let sin_half = half_angle.sin();
-        let cos_half = half_angle.cos();
+        let (sin_half, cos_half) = (cone.sin_half, cone.cos_half);
         let s = sin_half * sin_half;
         let a = 0.5 * sum_length;
         let k1 = a * a - s;

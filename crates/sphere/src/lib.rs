@@ -64,7 +64,7 @@ mod quadrature;
 pub mod triangle;
 
 pub use classify::Classification;
-pub use conic::{ConicKind, SphericalConic};
+pub use conic::{ConeRadius, ConicKind, SphericalConic};
 pub use error::SphereError;
 pub use overlap::{OverlapMethod, overlap_solid_angle};
 pub use triangle::SphericalTriangle;
