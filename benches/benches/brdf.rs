@@ -36,6 +36,25 @@ fn brdf(c: &mut Criterion) {
             first.pdf(black_box(*wi), *wo)
         })
     });
+    // What a multiscale evaluation adds to its tree query: the conic (every query) and the
+    // Eq. 5 factor (queries that find particles).
+    let cone = glint_sphere::ConeRadius::new(first.parameters().gamma).expect("valid cone");
+    let mut i = 0;
+    group.bench_function("eval_overhead_conic", |b| {
+        b.iter(|| {
+            i = (i + 1) % POOL;
+            let (wi, wo, _) = &first_queries[i];
+            glint_sphere::SphericalConic::with_cone(black_box(*wi), *wo, &cone)
+        })
+    });
+    let mut i = 0;
+    group.bench_function("eval_overhead_factor", |b| {
+        b.iter(|| {
+            i = (i + 1) % POOL;
+            let (wi, wo, f) = &first_queries[i];
+            first.f_hat_from_d_hat(black_box(*wi), *wo, glam::DVec3::splat(1e-6), f.area())
+        })
+    });
     for setting in &TABLE1 {
         let (brdf, queries) = table1_brdf_workload(setting, POOL, 1);
         let mut scratch = QueryScratch::new();

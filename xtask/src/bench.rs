@@ -57,12 +57,20 @@ const TREE_BENCHMARKS: [(&str, &str); 8] = [
 ];
 
 /// The BRDF benchmarks (besides the per-setting multiscale evals).
-const BRDF_BENCHMARKS: [(&str, &str); 3] = [
+const BRDF_BENCHMARKS: [(&str, &str); 5] = [
     ("smooth_eval", "smooth microfacet BRDF (Eq. 3), Beckmann"),
     ("glint_sample", "glint sampler: widened α, then the cone"),
     (
         "glint_pdf_64",
         "glint sampler pdf, 64-point QMC convolution (target ≤ 2 µs)",
+    ),
+    (
+        "eval_overhead_conic",
+        "multiscale eval beyond its query: the conic (every query)",
+    ),
+    (
+        "eval_overhead_factor",
+        "multiscale eval beyond its query: Eq. 5's factor (on a hit)",
     ),
 ];
 

@@ -277,8 +277,10 @@ impl DiscreteBrdf {
         self.f_hat_from_d_hat(wi, wo, d_hat, footprint.area())
     }
 
-    /// The corrected Eq. 5 for unit directions above the horizon.
-    fn f_hat_from_d_hat(&self, wi: DVec3, wo: DVec3, d_hat: DVec3, area: f64) -> DVec3 {
+    /// The corrected Eq. 5 for unit directions above the horizon, from a D̂ per channel and the
+    /// footprint's area (texture units): what [`DiscreteBrdf::eval_at`] adds to its tree query.
+    #[must_use]
+    pub fn f_hat_from_d_hat(&self, wi: DVec3, wo: DVec3, d_hat: DVec3, area: f64) -> DVec3 {
         let h = (wi + wo).normalize();
         if !(h.is_finite() && h.z > 0.0 && area > 0.0) || d_hat == DVec3::ZERO {
             return DVec3::ZERO;
