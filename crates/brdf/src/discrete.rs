@@ -311,17 +311,7 @@ impl Bxdf for DiscreteBrdf {
         if !above_horizon(wo) {
             return None;
         }
-        let pdf = self.pdf(wi, wo);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let f = self.smooth.eval(wi, wo);
-        Some(BxdfSample {
-            wo,
-            f,
-            pdf,
-            weight: f * (wo.z / pdf),
-        })
+        BxdfSample::weighted(wo, self.smooth.eval(wi, wo), self.pdf(wi, wo))
     }
 
     /// (1/σ) ∫ over the cone around ω_o of the widened model's density, by QMC.

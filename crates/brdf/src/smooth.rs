@@ -25,6 +25,23 @@ pub struct BxdfSample {
     pub weight: DVec3,
 }
 
+impl BxdfSample {
+    /// The sample of direction `wo` with BRDF value `f` and density `pdf`, or `None` when the
+    /// density is not a positive finite number (the sample could not be weighted).
+    #[must_use]
+    pub fn weighted(wo: DVec3, f: DVec3, pdf: f64) -> Option<Self> {
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        Some(Self {
+            wo,
+            f,
+            pdf,
+            weight: f * (wo.z / pdf),
+        })
+    }
+}
+
 /// A BRDF in the style of pbrt-v4.
 pub trait Bxdf {
     /// f(ω_i, ω_o) per RGB channel.
@@ -119,17 +136,7 @@ impl Bxdf for MicrofacetBrdf {
         if !above_horizon(wo) || wi.dot(m) <= 0.0 {
             return None;
         }
-        let pdf = self.pdf(wi, wo);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let f = self.eval(wi, wo);
-        Some(BxdfSample {
-            wo,
-            f,
-            pdf,
-            weight: f * (wo.z / pdf),
-        })
+        BxdfSample::weighted(wo, self.eval(wi, wo), self.pdf(wi, wo))
     }
 
     /// The normal density times the reflection Jacobian dm/dω_o = 1/(4 ω_i·h).
