@@ -466,7 +466,8 @@ impl CountTree {
                 && self.config.epsilon > 0.0
                 && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
             {
-                scale_floor = Some(self.integral_scale(footprint, conic, cells));
+                scale_floor = // Eq. 10's scale: the material's overlap method suffices.
+                Some(self.expected_count_by(footprint, conic, self.config.overlap, cells));
             }
             if node.count == 0 {
                 continue;
@@ -670,41 +671,22 @@ impl CountTree {
         conic: &SphericalConic,
         scratch: &mut QueryScratch,
     ) -> f64 {
-        self.expected_count_with(footprint, conic, &mut scratch.cells)
+        self.expected_count_by(footprint, conic, OverlapMethod::Precise, &mut scratch.cells)
     }
 
-    fn expected_count_with(
+    /// N·area·∫p over the conic, with partial near-uniform cells measured by `method`.
+    fn expected_count_by(
         &self,
         footprint: &Footprint,
         conic: &SphericalConic,
+        method: OverlapMethod,
         cells: &mut Vec<DirectionalCell>,
     ) -> f64 {
         if footprint.is_degenerate() {
             return 0.0;
         }
-        let integral = self.integral_over_conic_within(
-            &DirectionalCell::HEMISPHERE,
-            conic,
-            OverlapMethod::Precise,
-            cells,
-        );
-        self.config.particles as f64 * footprint.area() * integral
-            / self.quadrature.hemisphere_integral()
-    }
-
-    /// The expected count as Eq. 10's scale: the material's overlap method suffices.
-    fn integral_scale(
-        &self,
-        footprint: &Footprint,
-        conic: &SphericalConic,
-        cells: &mut Vec<DirectionalCell>,
-    ) -> f64 {
-        let integral = self.integral_over_conic_within(
-            &DirectionalCell::HEMISPHERE,
-            conic,
-            self.config.overlap,
-            cells,
-        );
+        let integral =
+            self.integral_over_conic_within(&DirectionalCell::HEMISPHERE, conic, method, cells);
         self.config.particles as f64 * footprint.area() * integral
             / self.quadrature.hemisphere_integral()
     }
