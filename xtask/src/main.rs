@@ -1,5 +1,8 @@
 //! `cargo xtask`: the project's long-running commands.
 //!
+//! - `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--out DIR] [--frames A..B]
+//!   [--smooth] [--threads N]`: renders a scene (default: `scenes/sphere_lights.toml`) to EXR,
+//!   PNG and JSON statistics under `target/render/`.
 //! - `cargo xtask validate [--quick]`: the validation suites, written as a Markdown report under
 //!   `target/validate/`; exits non-zero when any check fails.
 //! - `cargo xtask eval [FILE]`: the model as JSON Lines (see DESIGN.md), from FILE or stdin.
@@ -8,6 +11,7 @@
 
 mod bench;
 mod eval;
+mod render;
 mod validate;
 mod validate_brdf;
 mod validate_counts;
@@ -17,7 +21,7 @@ use clap::{Parser, Subcommand};
 #[derive(Parser, Debug)]
 #[command(
     name = "cargo xtask",
-    about = "glint's validation and benchmark commands"
+    about = "glint's render, validation, evaluation and benchmark commands"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -26,6 +30,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Render a scene file (default: scenes/sphere_lights.toml).
+    Render(render::RenderArgs),
     /// Check the model against its definitions by brute force; exit non-zero on any failure.
     Validate {
         /// Smaller sample sizes (under three minutes; part of CI).
@@ -54,6 +60,7 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Render(args) => render::run(&args),
         Command::Validate { quick, out } => validate::run(quick, &out),
         Command::Bench { quick, out } => bench::run(quick, &out),
         Command::Eval { file } => {

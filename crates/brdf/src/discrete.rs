@@ -121,6 +121,17 @@ pub struct GlintEvaluation {
     pub nodes_visited: u32,
 }
 
+/// f̂ for one footprint with the size of its tree query.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FootprintEvaluation {
+    /// f̂ per RGB channel (the corrected Eq. 5).
+    pub f_hat: DVec3,
+    /// Particles found (possibly fractional).
+    pub count: f64,
+    /// Tree nodes visited.
+    pub nodes_visited: u32,
+}
+
 /// The discrete stochastic microfacet BRDF of a material.
 #[derive(Clone, Debug)]
 pub struct DiscreteBrdf {
@@ -263,18 +274,40 @@ impl DiscreteBrdf {
         footprint: Option<&Footprint>,
         scratch: &mut QueryScratch,
     ) -> DVec3 {
-        let Some(footprint) = footprint else {
-            return self.smooth.eval(wi, wo);
+        match footprint {
+            Some(footprint) => self.eval_footprint(wi, wo, footprint, scratch).f_hat,
+            None => self.smooth.eval(wi, wo),
+        }
+    }
+
+    /// f̂ for a footprint with what its query found (for a renderer's statistics, as in the
+    /// paper's Table 1): the work of [`DiscreteBrdf::eval_at`], without the expected count that
+    /// [`DiscreteBrdf::evaluate`] adds.
+    pub fn eval_footprint(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        footprint: &Footprint,
+        scratch: &mut QueryScratch,
+    ) -> FootprintEvaluation {
+        let none = FootprintEvaluation {
+            f_hat: DVec3::ZERO,
+            count: 0.0,
+            nodes_visited: 0,
         };
         if !(above_horizon(wi) && above_horizon(wo)) {
-            return DVec3::ZERO;
+            return none;
         }
         let (wi, wo) = (wi.normalize(), wo.normalize());
         let Ok(conic) = SphericalConic::with_cone(wi, wo, &self.cone) else {
-            return DVec3::ZERO;
+            return none;
         };
-        let d_hat = DVec3::from_array(self.tree.query(footprint, &conic, scratch).d_hat);
-        self.f_hat_from_d_hat(wi, wo, d_hat, footprint.area())
+        let result = self.tree.query(footprint, &conic, scratch);
+        FootprintEvaluation {
+            f_hat: self.f_hat_from_d_hat(wi, wo, DVec3::from_array(result.d_hat), footprint.area()),
+            count: result.count,
+            nodes_visited: result.nodes_visited,
+        }
     }
 
     /// The corrected Eq. 5 for unit directions above the horizon, from a D̂ per channel and the

@@ -22,7 +22,7 @@ pub mod fresnel;
 pub mod qmc;
 pub mod smooth;
 
-pub use discrete::{DiscreteBrdf, GlintEvaluation, GlintParameters};
+pub use discrete::{DiscreteBrdf, FootprintEvaluation, GlintEvaluation, GlintParameters};
 pub use distribution::{DistributionKind, Microfacet, NormalSampling};
 pub use error::BrdfError;
 pub use fresnel::Fresnel;

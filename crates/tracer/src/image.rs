@@ -1,0 +1,299 @@
+//! Linear RGB images: reading PNG (sRGB-decoded) and EXR textures, bilinear lookup with
+//! wrapping, and writing linear EXR and tone-mapped sRGB PNG.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter};
+use std::path::Path;
+
+use glam::{DVec2, DVec3};
+
+use crate::error::TracerError;
+
+/// A linear RGB image, row-major from the top row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// The pixels.
+    pub pixels: Vec<DVec3>,
+}
+
+/// The sRGB transfer function's inverse: an 8-bit-style encoded value to linear.
+#[must_use]
+pub fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The sRGB transfer function: linear to encoded, for c in [0, 1].
+#[must_use]
+pub fn linear_to_srgb(c: f64) -> f64 {
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+impl RgbImage {
+    /// An image of one colour.
+    #[must_use]
+    pub fn filled(width: usize, height: usize, colour: DVec3) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![colour; width * height],
+        }
+    }
+
+    /// Loads a PNG (8 or 16 bits, grey or colour, alpha ignored; decoded from sRGB) or an
+    /// OpenEXR file (linear), chosen by the extension.
+    ///
+    /// # Errors
+    /// [`TracerError::Asset`] naming the file and the problem.
+    pub fn load(path: &Path) -> Result<Self, TracerError> {
+        let error = |problem: String| TracerError::Asset {
+            path: path.to_path_buf(),
+            problem,
+        };
+        let extension = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        let image = match extension.as_deref() {
+            Some("png") => Self::load_png(path).map_err(error)?,
+            Some("exr") => Self::load_exr(path).map_err(error)?,
+            _ => return Err(error("unknown image format (expected .png or .exr)".into())),
+        };
+        if image.width == 0 || image.height == 0 {
+            return Err(error("the image is empty".into()));
+        }
+        if image.pixels.iter().any(|p| !p.is_finite()) {
+            return Err(error("the image has non-finite pixels".into()));
+        }
+        Ok(image)
+    }
+
+    fn load_png(path: &Path) -> Result<Self, String> {
+        let file = File::open(path).map_err(|e| e.to_string())?;
+        let mut decoder = png::Decoder::new(BufReader::new(file));
+        decoder.set_transformations(png::Transformations::EXPAND);
+        let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
+        let size = reader
+            .output_buffer_size()
+            .ok_or("the image is too large")?;
+        let mut buffer = vec![0u8; size];
+        let info = reader.next_frame(&mut buffer).map_err(|e| e.to_string())?;
+        let channels = info.color_type.samples();
+        let bytes = match info.bit_depth {
+            png::BitDepth::Sixteen => 2,
+            _ => 1,
+        };
+        let (width, height) = (info.width as usize, info.height as usize);
+        let sample = |i: usize| -> f64 {
+            if bytes == 2 {
+                f64::from(u16::from_be_bytes([buffer[2 * i], buffer[2 * i + 1]])) / 65535.0
+            } else {
+                f64::from(buffer[i]) / 255.0
+            }
+        };
+        let mut pixels = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                let base = (y * info.line_size) / bytes + x * channels;
+                let rgb = if channels >= 3 {
+                    DVec3::new(sample(base), sample(base + 1), sample(base + 2))
+                } else {
+                    DVec3::splat(sample(base))
+                };
+                pixels.push(DVec3::new(
+                    srgb_to_linear(rgb.x),
+                    srgb_to_linear(rgb.y),
+                    srgb_to_linear(rgb.z),
+                ));
+            }
+        }
+        Ok(Self {
+            width,
+            height,
+            pixels,
+        })
+    }
+
+    fn load_exr(path: &Path) -> Result<Self, String> {
+        use exr::prelude::*;
+        let image = read_first_rgba_layer_from_file(
+            path,
+            |resolution, _| RgbImage::filled(resolution.width(), resolution.height(), DVec3::ZERO),
+            |image: &mut RgbImage, position, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let i = position.y() * image.width + position.x();
+                image.pixels[i] = DVec3::new(r.into(), g.into(), b.into());
+            },
+        )
+        .map_err(|e| e.to_string())?;
+        Ok(image.layer_data.channel_data.pixels)
+    }
+
+    /// The texel at integer coordinates, wrapped.
+    #[must_use]
+    pub fn texel(&self, x: i64, y: i64) -> DVec3 {
+        let x = x.rem_euclid(self.width as i64) as usize;
+        let y = y.rem_euclid(self.height as i64) as usize;
+        self.pixels[y * self.width + x]
+    }
+
+    /// Bilinear lookup at texture coordinates `uv` (v = 0 at the bottom row, as in OBJ and
+    /// the rectangle's parameterization), repeating.
+    #[must_use]
+    pub fn lookup(&self, uv: DVec2) -> DVec3 {
+        if !uv.is_finite() {
+            return DVec3::ZERO;
+        }
+        let x = uv.x * self.width as f64 - 0.5;
+        let y = (1.0 - uv.y) * self.height as f64 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let top = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
+        let bottom = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
+        top.lerp(bottom, fy)
+    }
+
+    /// The mean colour.
+    #[must_use]
+    pub fn mean(&self) -> DVec3 {
+        self.pixels.iter().copied().sum::<DVec3>() / self.pixels.len().max(1) as f64
+    }
+
+    /// Writes a linear 32-bit float RGB OpenEXR file.
+    ///
+    /// # Errors
+    /// [`TracerError::Output`] when the file cannot be written.
+    pub fn write_exr(&self, path: &Path) -> Result<(), TracerError> {
+        exr::prelude::write_rgb_file(path, self.width, self.height, |x, y| {
+            let p = self.pixels[y * self.width + x];
+            (p.x as f32, p.y as f32, p.z as f32)
+        })
+        .map_err(|e| TracerError::Output {
+            path: path.to_path_buf(),
+            problem: e.to_string(),
+        })
+    }
+
+    /// The 8-bit sRGB encoding of the image scaled by 2^`exposure` (clamped to [0, 1]).
+    #[must_use]
+    pub fn to_srgb8(&self, exposure: f64) -> Vec<u8> {
+        let scale = exposure.exp2();
+        let encode = |c: f64| {
+            let c = if c.is_finite() {
+                (c * scale).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (linear_to_srgb(c) * 255.0 + 0.5) as u8
+        };
+        self.pixels
+            .iter()
+            .flat_map(|p| [encode(p.x), encode(p.y), encode(p.z)])
+            .collect()
+    }
+
+    /// Writes a tone-mapped 8-bit sRGB PNG (exposure 2^`exposure`, clamped).
+    ///
+    /// # Errors
+    /// [`TracerError::Output`] when the file cannot be written.
+    pub fn write_png(&self, path: &Path, exposure: f64) -> Result<(), TracerError> {
+        let error = |problem: String| TracerError::Output {
+            path: path.to_path_buf(),
+            problem,
+        };
+        let file = File::create(path).map_err(|e| error(e.to_string()))?;
+        let mut encoder =
+            png::Encoder::new(BufWriter::new(file), self.width as u32, self.height as u32);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut writer = encoder.write_header().map_err(|e| error(e.to_string()))?;
+        writer
+            .write_image_data(&self.to_srgb8(exposure))
+            .map_err(|e| error(e.to_string()))?;
+        writer.finish().map_err(|e| error(e.to_string()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient() -> RgbImage {
+        let (width, height) = (5, 3);
+        let pixels = (0..width * height)
+            .map(|i| DVec3::new((i % width) as f64 / 4.0, (i / width) as f64 / 2.0, 0.25))
+            .collect();
+        RgbImage {
+            width,
+            height,
+            pixels,
+        }
+    }
+
+    #[test]
+    fn png_and_exr_round_trip() {
+        let dir = std::env::temp_dir().join(format!("glint-image-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let image = gradient();
+        let exr_path = dir.join("g.exr");
+        image.write_exr(&exr_path).unwrap();
+        let back = RgbImage::load(&exr_path).unwrap();
+        assert_eq!((back.width, back.height), (5, 3));
+        for (a, b) in image.pixels.iter().zip(&back.pixels) {
+            assert!((*a - *b).abs().max_element() < 1e-6);
+        }
+        let png_path = dir.join("g.png");
+        image.write_png(&png_path, 0.0).unwrap();
+        let back = RgbImage::load(&png_path).unwrap();
+        for (a, b) in image.pixels.iter().zip(&back.pixels) {
+            // 8-bit sRGB quantization: at most half a step, ≤ 0.5/255 / (dlinear/dsrgb ≥ 12.92⁻¹…).
+            assert!((*a - *b).abs().max_element() < 6e-3, "{a} {b}");
+        }
+        let missing = RgbImage::load(&dir.join("nope.png"));
+        assert!(matches!(missing, Err(TracerError::Asset { .. })));
+        let wrong = RgbImage::load(&dir.join("g.bmp"));
+        assert!(
+            wrong
+                .unwrap_err()
+                .to_string()
+                .contains("unknown image format")
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bilinear_lookup_hits_texel_centres_and_wraps() {
+        let image = gradient();
+        // Texel (x, y) has its centre at u = (x + ½)/w, v = 1 − (y + ½)/h.
+        for y in 0..3 {
+            for x in 0..5 {
+                let uv = DVec2::new((x as f64 + 0.5) / 5.0, 1.0 - (y as f64 + 0.5) / 3.0);
+                assert!((image.lookup(uv) - image.texel(x, y)).length() < 1e-12);
+                assert!(
+                    (image.lookup(uv + DVec2::new(2.0, -3.0)) - image.texel(x, y)).length() < 1e-9
+                );
+            }
+        }
+        assert_eq!(image.lookup(DVec2::new(f64::NAN, 0.0)), DVec3::ZERO);
+    }
+
+    #[test]
+    fn srgb_round_trip() {
+        for i in 0..=100 {
+            let c = f64::from(i) / 100.0;
+            assert!((srgb_to_linear(linear_to_srgb(c)) - c).abs() < 1e-12);
+        }
+    }
+}

@@ -1,0 +1,291 @@
+//! Triangle meshes: loaded from OBJ files (`tobj`, triangulated, one index per vertex) or built
+//! in code, with optional vertex normals and texture coordinates.
+
+use std::path::Path;
+
+use glam::{DAffine3, DMat3, DVec2, DVec3};
+
+use crate::error::TracerError;
+use crate::shape::{Ray, SurfaceHit};
+
+/// An indexed triangle mesh in world space.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub positions: Vec<DVec3>,
+    /// Vertex normals (empty: flat shading).
+    pub normals: Vec<DVec3>,
+    /// Vertex texture coordinates (empty: each triangle gets (0,0), (1,0), (1,1)).
+    pub uvs: Vec<DVec2>,
+    /// Vertex indices, three per triangle.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Loads every model of an OBJ file into one mesh.
+    ///
+    /// # Errors
+    /// [`TracerError::Asset`] when the file cannot be read or parsed, or has no triangles.
+    pub fn load_obj(path: &Path) -> Result<Self, TracerError> {
+        let asset_error = |problem: String| TracerError::Asset {
+            path: path.to_path_buf(),
+            problem,
+        };
+        let (models, _materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS)
+            .map_err(|e| asset_error(e.to_string()))?;
+        let mut mesh = Self::default();
+        let mut with_normals = true;
+        let mut with_uvs = true;
+        for model in &models {
+            let m = &model.mesh;
+            with_normals &= !m.normals.is_empty();
+            with_uvs &= !m.texcoords.is_empty();
+        }
+        for model in &models {
+            let m = &model.mesh;
+            let base = mesh.positions.len() as u32;
+            mesh.positions.extend(
+                m.positions
+                    .chunks_exact(3)
+                    .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into())),
+            );
+            if with_normals {
+                mesh.normals.extend(
+                    m.normals
+                        .chunks_exact(3)
+                        .map(|n| DVec3::new(n[0].into(), n[1].into(), n[2].into())),
+                );
+            }
+            if with_uvs {
+                mesh.uvs.extend(
+                    m.texcoords
+                        .chunks_exact(2)
+                        .map(|t| DVec2::new(t[0].into(), t[1].into())),
+                );
+            }
+            for tri in m.indices.chunks_exact(3) {
+                mesh.triangles
+                    .push([base + tri[0], base + tri[1], base + tri[2]]);
+            }
+        }
+        mesh.validate().map_err(asset_error)?;
+        Ok(mesh)
+    }
+
+    /// Checks that indices are in range, attributes match the positions and values are finite.
+    ///
+    /// # Errors
+    /// A description of the first problem found.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.triangles.is_empty() {
+            return Err("the mesh has no triangles".into());
+        }
+        let n = self.positions.len();
+        if !self.normals.is_empty() && self.normals.len() != n {
+            return Err(format!("{} normals for {n} positions", self.normals.len()));
+        }
+        if !self.uvs.is_empty() && self.uvs.len() != n {
+            return Err(format!(
+                "{} texture coordinates for {n} positions",
+                self.uvs.len()
+            ));
+        }
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!("vertex {i} is not finite"));
+        }
+        if let Some(t) = self
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(format!("triangle {t} indexes past the {n} vertices"));
+        }
+        Ok(())
+    }
+
+    /// The mesh moved by `transform` (normals by its inverse transpose).
+    #[must_use]
+    pub fn transformed(mut self, transform: &DAffine3) -> Self {
+        let normal_matrix: DMat3 = transform.matrix3.inverse().transpose();
+        for p in &mut self.positions {
+            *p = transform.transform_point3(*p);
+        }
+        for n in &mut self.normals {
+            *n = (normal_matrix * *n).normalize_or_zero();
+        }
+        if transform.matrix3.determinant() < 0.0 {
+            for t in &mut self.triangles {
+                t.swap(1, 2);
+            }
+        }
+        self
+    }
+
+    /// The three corners of triangle `index`.
+    #[must_use]
+    pub fn corners(&self, index: usize) -> [DVec3; 3] {
+        self.triangles[index].map(|i| self.positions[i as usize])
+    }
+
+    /// The ray parameter in (t_min, t_max) where the ray meets triangle `index`, with the
+    /// barycentric coordinates (b1, b2) of the hit (Möller–Trumbore).
+    #[must_use]
+    pub fn intersect(
+        &self,
+        index: usize,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<(f64, f64, f64)> {
+        let [p0, p1, p2] = self.corners(index);
+        let e1 = p1 - p0;
+        let e2 = p2 - p0;
+        let pvec = ray.direction.cross(e2);
+        let det = e1.dot(pvec);
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let tvec = ray.origin - p0;
+        let b1 = tvec.dot(pvec) * inv;
+        if !(0.0..=1.0).contains(&b1) {
+            return None;
+        }
+        let qvec = tvec.cross(e1);
+        let b2 = ray.direction.dot(qvec) * inv;
+        if !(b2 >= 0.0 && b1 + b2 <= 1.0) {
+            return None;
+        }
+        let t = e2.dot(qvec) * inv;
+        (t > t_min && t < t_max).then_some((t, b1, b2))
+    }
+
+    /// The texture coordinates of triangle `index`'s corners.
+    fn corner_uvs(&self, index: usize) -> [DVec2; 3] {
+        if self.uvs.is_empty() {
+            [DVec2::ZERO, DVec2::X, DVec2::ONE]
+        } else {
+            self.triangles[index].map(|i| self.uvs[i as usize])
+        }
+    }
+
+    /// The hit on triangle `index` at barycentrics (b1, b2): ∂p/∂u, ∂p/∂v solve
+    /// [Δp₁ Δp₂] = [∂p/∂u ∂p/∂v]·[Δuv₁ Δuv₂] (pbrt-v4, "Triangle"); a triangle with degenerate
+    /// texture coordinates gets an arbitrary tangent frame.
+    #[must_use]
+    pub fn surface(&self, index: usize, t: f64, b1: f64, b2: f64) -> SurfaceHit {
+        let [p0, p1, p2] = self.corners(index);
+        let [uv0, uv1, uv2] = self.corner_uvs(index);
+        let b0 = 1.0 - b1 - b2;
+        let geometric_normal = (p1 - p0).cross(p2 - p0).normalize();
+        let (duv1, duv2) = (uv1 - uv0, uv2 - uv0);
+        let (dp1, dp2) = (p1 - p0, p2 - p0);
+        let det = duv1.perp_dot(duv2);
+        let (dpdu, dpdv) = if det.abs() > 1e-14 * duv1.length() * duv2.length() && det != 0.0 {
+            (
+                (duv2.y * dp1 - duv1.y * dp2) / det,
+                (duv1.x * dp2 - duv2.x * dp1) / det,
+            )
+        } else {
+            crate::shape::orthonormal_basis(geometric_normal)
+        };
+        let shading_normal = if self.normals.is_empty() {
+            geometric_normal
+        } else {
+            let [n0, n1, n2] = self.triangles[index].map(|i| self.normals[i as usize]);
+            let n = (b0 * n0 + b1 * n1 + b2 * n2).normalize_or_zero();
+            if n == DVec3::ZERO {
+                geometric_normal
+            } else if n.dot(geometric_normal) < 0.0 {
+                -n
+            } else {
+                n
+            }
+        };
+        SurfaceHit {
+            t,
+            point: b0 * p0 + b1 * p1 + b2 * p2,
+            geometric_normal,
+            shading_normal,
+            uv: b0 * uv0 + b1 * uv1 + b2 * uv2,
+            dpdu,
+            dpdv,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> Mesh {
+        Mesh {
+            positions: vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(2.0, 0.0, 0.0),
+                DVec3::new(2.0, 0.5, -1.0),
+                DVec3::new(0.0, 0.5, -1.0),
+            ],
+            normals: vec![],
+            uvs: vec![
+                DVec2::new(0.0, 0.0),
+                DVec2::new(3.0, 0.0),
+                DVec2::new(3.0, 1.0),
+                DVec2::new(0.0, 1.0),
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        }
+    }
+
+    #[test]
+    fn triangle_tangents_match_finite_differences_of_the_uv_map() {
+        let mesh = quad();
+        // On this planar quad p is affine in (u, v): p = p0 + u·(2/3, 0, 0) + v·(0, 0.5, −1).
+        let expected_dpdu = DVec3::new(2.0 / 3.0, 0.0, 0.0);
+        let expected_dpdv = DVec3::new(0.0, 0.5, -1.0);
+        for (i, target) in [DVec3::new(1.5, 0.1, -0.2), DVec3::new(0.3, 0.4, -0.8)]
+            .into_iter()
+            .enumerate()
+        {
+            let origin = DVec3::new(0.7, 3.0, 1.0);
+            let ray = Ray {
+                origin,
+                direction: (target - origin).normalize(),
+            };
+            let hit = (0..2)
+                .find_map(|k| {
+                    mesh.intersect(k, &ray, 0.0, f64::INFINITY)
+                        .map(|(t, b1, b2)| mesh.surface(k, t, b1, b2))
+                })
+                .unwrap_or_else(|| panic!("ray {i} misses"));
+            assert!((hit.point - target).length() < 1e-12);
+            assert!((hit.dpdu - expected_dpdu).length() < 1e-12);
+            assert!((hit.dpdv - expected_dpdv).length() < 1e-12);
+            let p_from_uv = DVec3::ZERO + hit.uv.x * expected_dpdu + hit.uv.y * expected_dpdv;
+            assert!((p_from_uv - hit.point).length() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn bad_meshes_are_rejected() {
+        let mut mesh = quad();
+        mesh.triangles.push([0, 1, 9]);
+        assert!(mesh.validate().unwrap_err().contains("triangle 2"));
+        assert!(Mesh::default().validate().is_err());
+        let missing = Mesh::load_obj(Path::new("/nonexistent/mesh.obj"));
+        assert!(matches!(missing, Err(TracerError::Asset { .. })));
+    }
+
+    #[test]
+    fn mirroring_transforms_keep_outward_winding() {
+        let mesh = quad();
+        let n_before = (mesh.positions[1] - mesh.positions[0])
+            .cross(mesh.positions[2] - mesh.positions[0])
+            .normalize();
+        let mirror = DAffine3::from_scale(DVec3::new(-1.0, 1.0, 1.0));
+        let moved = mesh.transformed(&mirror);
+        let [p0, p1, p2] = moved.corners(0);
+        let n_after = (p1 - p0).cross(p2 - p0).normalize();
+        assert!((n_after - DVec3::new(-n_before.x, n_before.y, n_before.z)).length() < 1e-12);
+    }
+}

@@ -1,0 +1,59 @@
+//! The built scene: primitives in a BVH, materials, lights and the camera. Immutable once
+//! built, shared by every rendering thread.
+
+use glam::DVec3;
+
+use crate::accel::{Accelerator, PrimitiveHit};
+use crate::camera::Camera;
+use crate::integrator::RenderSettings;
+use crate::light::Light;
+use crate::material::Material;
+use crate::shape::Ray;
+
+/// A scene ready to render.
+#[derive(Debug)]
+pub struct Scene {
+    /// Primitives and their BVH.
+    pub accelerator: Accelerator,
+    /// Materials, indexed by [`crate::accel::Primitive::material`].
+    pub materials: Vec<Material>,
+    /// Lights, indexed by [`crate::accel::Primitive::light`].
+    pub lights: Vec<Light>,
+    /// The camera.
+    pub camera: Camera,
+    /// The scene file's render settings (command-line options override them).
+    pub settings: RenderSettings,
+}
+
+impl Scene {
+    /// The nearest hit along `ray` with t in (0, t_max).
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<PrimitiveHit> {
+        self.accelerator.intersect(ray, t_max)
+    }
+
+    /// Whether anything blocks `ray` before `t_max`.
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray, t_max: f64) -> bool {
+        self.accelerator.occluded(ray, t_max)
+    }
+
+    /// The radiance of the environment along a ray that leaves the scene.
+    #[must_use]
+    pub fn escaped(&self, direction: DVec3) -> DVec3 {
+        self.lights.iter().map(|l| l.escaped(direction)).sum()
+    }
+
+    /// Every glint material replaced by its smooth limit (`--smooth`, the paper's Fig. 3).
+    pub fn make_smooth(&mut self) {
+        for m in &mut self.materials {
+            *m = m.smooth_limit();
+        }
+    }
+
+    /// Whether any material has glints.
+    #[must_use]
+    pub fn has_glints(&self) -> bool {
+        self.materials.iter().any(Material::has_glints)
+    }
+}

@@ -1,0 +1,195 @@
+//! `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--out DIR] [--frames A..B]
+//! [--smooth] [--threads N]`: renders a scene file to linear EXR, tone-mapped PNG and a JSON
+//! file of Table-1 statistics, with a progress bar.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use glint_tracer::scene_file::load_scene;
+use glint_tracer::{RenderStatistics, render};
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// The scene rendered when none is named.
+pub(crate) fn default_scene() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/sphere_lights.toml")
+}
+
+/// Command-line options of `render`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct RenderArgs {
+    /// The scene file (default: scenes/sphere_lights.toml).
+    pub(crate) scene: Option<PathBuf>,
+    /// Samples per pixel (default: the scene's).
+    #[arg(long)]
+    pub(crate) spp: Option<u32>,
+    /// Image size as WIDTHxHEIGHT (default: the scene's).
+    #[arg(long, value_parser = parse_resolution)]
+    pub(crate) resolution: Option<(u32, u32)>,
+    /// Output folder.
+    #[arg(long, default_value = "target/render")]
+    pub(crate) out: PathBuf,
+    /// Render camera frames A..B (inclusive), one image each.
+    #[arg(long, value_parser = parse_frames)]
+    pub(crate) frames: Option<(i64, i64)>,
+    /// Replace every glint material by its smooth limit (the paper's Fig. 3 comparisons).
+    #[arg(long)]
+    pub(crate) smooth: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub(crate) threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    pub(crate) quiet: bool,
+}
+
+fn parse_resolution(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{text}` is not WIDTHxHEIGHT"))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .map_err(|e| format!("`{s}` in `{text}`: {e}"))
+    };
+    Ok((parse(w)?, parse(h)?))
+}
+
+fn parse_frames(text: &str) -> Result<(i64, i64), String> {
+    let (a, b) = text
+        .split_once("..")
+        .ok_or_else(|| format!("`{text}` is not A..B"))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<i64>()
+            .map_err(|e| format!("`{s}` in `{text}`: {e}"))
+    };
+    let (a, b) = (parse(a)?, parse(b.trim_start_matches('='))?);
+    if b < a {
+        return Err(format!("`{text}`: the last frame comes before the first"));
+    }
+    Ok((a, b))
+}
+
+/// The statistics as one JSON object.
+pub(crate) fn statistics_json(
+    scene: &Path,
+    frame: i64,
+    settings: &glint_tracer::RenderSettings,
+    smooth: bool,
+    threads: usize,
+    s: &RenderStatistics,
+) -> serde_json::Value {
+    serde_json::json!({
+        "scene": scene.display().to_string(),
+        "frame": frame,
+        "resolution": [settings.width, settings.height],
+        "spp": settings.samples_per_pixel,
+        "smooth": smooth,
+        "threads": threads,
+        "seconds": s.seconds,
+        "rays": s.rays,
+        "rays_per_second": s.rays_per_second(),
+        "glint_queries": s.glint.queries,
+        "nodes_per_query": s.nodes_per_query(),
+        "particles_per_query": s.particles_per_query(),
+        "queries_per_second": s.queries_per_second(),
+    })
+}
+
+pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
+    let scene_path = args.scene.clone().unwrap_or_else(default_scene);
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        bail!("--threads must be at least 1");
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start the worker threads")?;
+    let build_start = std::time::Instant::now();
+    let mut scene = load_scene(&scene_path)?;
+    let build_seconds = build_start.elapsed().as_secs_f64();
+    if args.smooth {
+        scene.make_smooth();
+    }
+    let mut settings = scene.settings;
+    if let Some(spp) = args.spp {
+        settings.samples_per_pixel = spp;
+    }
+    if let Some((w, h)) = args.resolution {
+        settings.width = w;
+        settings.height = h;
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let stem = scene_path
+        .file_stem()
+        .map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    let stem = if args.smooth {
+        format!("{stem}_smooth")
+    } else {
+        stem
+    };
+    let frames: Vec<i64> = match args.frames {
+        Some((a, b)) => (a..=b).collect(),
+        None => vec![0],
+    };
+    println!(
+        "{}: {}x{}, {} spp, {} thread(s){}; scene built in {:.2} s",
+        scene_path.display(),
+        settings.width,
+        settings.height,
+        settings.samples_per_pixel,
+        threads,
+        if args.smooth { ", smooth" } else { "" },
+        build_seconds
+    );
+    for &frame in &frames {
+        let bar = if args.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::new(1)
+        };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{msg} [{bar:40}] {pos}/{len} tiles, {elapsed} (eta {eta})",
+            )
+            .expect("a valid template")
+            .progress_chars("=> "),
+        );
+        bar.set_message(format!("frame {frame}"));
+        let progress = |done: u64, total: u64| {
+            bar.set_length(total);
+            bar.set_position(done);
+        };
+        let output = pool.install(|| render(&scene, &settings, frame as f64, &progress))?;
+        bar.finish_and_clear();
+        let name = if args.frames.is_some() {
+            format!("{stem}_{frame:04}")
+        } else {
+            stem.clone()
+        };
+        let exr = args.out.join(format!("{name}.exr"));
+        let png = args.out.join(format!("{name}.png"));
+        let json = args.out.join(format!("{name}.json"));
+        output.image.write_exr(&exr)?;
+        output.image.write_png(&png, settings.exposure)?;
+        let s = output.statistics;
+        let stats = statistics_json(&scene_path, frame, &settings, args.smooth, threads, &s);
+        std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")
+            .with_context(|| format!("cannot write {}", json.display()))?;
+        println!(
+            "frame {frame}: {:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes and {:.2} particles per query, {:.0} queries/s → {}",
+            s.seconds,
+            s.rays_per_second() * 1e-6,
+            s.glint.queries,
+            s.nodes_per_query(),
+            s.particles_per_query(),
+            s.queries_per_second(),
+            png.display()
+        );
+    }
+    Ok(())
+}
