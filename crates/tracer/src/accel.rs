@@ -161,7 +161,8 @@ impl Accelerator {
 }
 
 /// The single-precision ray obvhs traverses with; its t_max is rounded up so that boxes are
-/// never culled by rounding.
+/// never culled by rounding. Negative zeros become positive: obvhs 0.4 picks the traversal
+/// octant by `x < 0` but inverts −0 to a large negative number, and then misses every box.
 fn to_bvh_ray(ray: &Ray, t_max: f64) -> BvhRay {
     let tmax = if t_max.is_finite() {
         (t_max as f32) * (1.0 + 4.0 * f32::EPSILON) + f32::MIN_POSITIVE
@@ -170,7 +171,7 @@ fn to_bvh_ray(ray: &Ray, t_max: f64) -> BvhRay {
     };
     BvhRay::new(
         Vec3A::from(ray.origin.as_vec3()),
-        Vec3A::from(ray.direction.as_vec3()),
+        Vec3A::from((ray.direction + DVec3::ZERO).as_vec3()),
         0.0,
         tmax,
     )
@@ -269,5 +270,39 @@ mod tests {
             }
         }
         assert!(hits > 100, "the test must exercise hits: {hits}");
+    }
+
+    /// Axis-aligned rays with negative zero components (−Y is (−0, −1, −0)) still hit.
+    #[test]
+    fn negative_zero_directions_hit() {
+        let quad = Rectangle::new(
+            DVec3::ZERO,
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, -2.0),
+        )
+        .unwrap();
+        let accel = Accelerator::new(
+            vec![Primitive {
+                geometry: Geometry::Rectangle(quad),
+                material: 0,
+                light: None,
+            }],
+            vec![],
+        );
+        for direction in [
+            -DVec3::Y,
+            DVec3::new(-0.0, -1.0, 0.0),
+            DVec3::new(0.0, -1.0, -0.0),
+        ] {
+            let ray = Ray {
+                origin: DVec3::new(0.5, 3.0, 0.25),
+                direction,
+            };
+            assert!(
+                accel.intersect(&ray, f64::INFINITY).is_some(),
+                "{direction:?}"
+            );
+            assert!(accel.occluded(&ray, f64::INFINITY), "{direction:?}");
+        }
     }
 }

@@ -1182,3 +1182,55 @@ power = 10
         );
     }
 }
+
+#[cfg(test)]
+mod mesh_tests {
+    use super::*;
+
+    /// An OBJ mesh beside the scene file, moved by a transform, is found by rays.
+    #[test]
+    fn obj_meshes_load_relative_to_the_scene_with_their_transform() {
+        let dir = std::env::temp_dir().join(format!("glint-scene-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("meshes")).unwrap();
+        std::fs::write(
+            dir.join("meshes/quad.obj"),
+            "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 4/4 3/3 2/2\n",
+        )
+        .unwrap();
+        let text = r#"
+[camera]
+position = [0, 3, 0.01]
+look_at = [0, 0, 0]
+[materials.grey]
+type = "diffuse"
+[[shapes]]
+type = "mesh"
+file = "meshes/quad.obj"
+material = "grey"
+transform = { scale = 2, translate = [0, 0.5, 0], rotate = [0, 1, 0, 30] }
+[[lights]]
+type = "directional"
+direction = [0, 1, 0]
+irradiance = 1
+"#;
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, text).unwrap();
+        let scene = load_scene(&path).unwrap();
+        assert_eq!(scene.accelerator.primitives().len(), 2);
+        let ray = crate::shape::Ray {
+            origin: DVec3::new(1.5, 3.0, 0.0),
+            direction: -DVec3::Y,
+        };
+        let hit = scene
+            .intersect(&ray, f64::INFINITY)
+            .expect("the scaled quad spans ±2");
+        assert!((hit.surface.point.y - 0.5).abs() < 1e-12);
+        let miss = crate::shape::Ray {
+            origin: DVec3::new(2.9, 3.0, 0.0),
+            direction: -DVec3::Y,
+        };
+        // Rotated by 30°, the square's corner region at (2.9, 0) lies outside it.
+        assert!(scene.intersect(&miss, f64::INFINITY).is_none());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
