@@ -165,6 +165,7 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
             median("brdf", &format!("eval_{}", setting.name))? / 1000.0
         )?;
     }
+    render_timings(quick, &mut table)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("summary.md");
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -176,6 +177,67 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
     std::fs::write(&path, header + &table)
         .with_context(|| format!("writing {}", path.display()))?;
     println!("\n{table}\nsummary: {}", path.display());
+    Ok(())
+}
+
+/// The default scene rendered with glints and with `--smooth` at equal samples, on one thread
+/// and on all: wall-clock time, rays per second, the Table 1 query statistics and the
+/// glint/smooth time ratio, all measured in this one run.
+fn render_timings(quick: bool, table: &mut String) -> anyhow::Result<()> {
+    let scene_path = crate::render::default_scene();
+    let glint = glint_tracer::scene_file::load_scene(&scene_path)?;
+    let mut smooth = glint_tracer::scene_file::load_scene(&scene_path)?;
+    smooth.make_smooth();
+    let mut settings = glint.settings;
+    if quick {
+        settings.width /= 2;
+        settings.height /= 2;
+    }
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut thread_counts = vec![1];
+    if all > 1 {
+        thread_counts.push(all);
+    }
+    writeln!(
+        table,
+        "\n## Renders: the default scene ({}, {}x{}, {} spp)\n\n\
+         | threads | material | seconds | Mrays/s | glint queries | nodes per query | particles per query | queries/s | glint / smooth time |\n\
+         |---|---|---|---|---|---|---|---|---|",
+        scene_path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        settings.width,
+        settings.height,
+        settings.samples_per_pixel
+    )?;
+    for threads in thread_counts {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()?;
+        let glint_stats = pool
+            .install(|| glint_tracer::render(&glint, &settings, 0.0, &|_, _| {}))?
+            .statistics;
+        let smooth_stats = pool
+            .install(|| glint_tracer::render(&smooth, &settings, 0.0, &|_, _| {}))?
+            .statistics;
+        for (name, s) in [("glint", &glint_stats), ("smooth", &smooth_stats)] {
+            writeln!(
+                table,
+                "| {threads} | {name} | {:.2} | {:.3} | {} | {:.1} | {:.2} | {:.0} | {} |",
+                s.seconds,
+                s.rays_per_second() * 1e-6,
+                s.glint.queries,
+                s.nodes_per_query(),
+                s.particles_per_query(),
+                s.queries_per_second(),
+                if name == "glint" {
+                    format!("{:.1}×", glint_stats.seconds / smooth_stats.seconds)
+                } else {
+                    String::new()
+                }
+            )?;
+        }
+    }
     Ok(())
 }
 

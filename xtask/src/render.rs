@@ -180,16 +180,7 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         let stats = statistics_json(&scene_path, frame, &settings, args.smooth, threads, &s);
         std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")
             .with_context(|| format!("cannot write {}", json.display()))?;
-        println!(
-            "frame {frame}: {:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes and {:.2} particles per query, {:.0} queries/s → {}",
-            s.seconds,
-            s.rays_per_second() * 1e-6,
-            s.glint.queries,
-            s.nodes_per_query(),
-            s.particles_per_query(),
-            s.queries_per_second(),
-            png.display()
-        );
+        println!("frame {frame}: {s} → {}", png.display());
     }
     Ok(())
 }

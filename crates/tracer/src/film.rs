@@ -55,6 +55,22 @@ impl RenderStatistics {
     }
 }
 
+impl std::fmt::Display for RenderStatistics {
+    /// One line: time, rays per second and the Table 1 query statistics.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes and {:.2} particles per query, {:.0} queries/s",
+            self.seconds,
+            self.rays_per_second() * 1e-6,
+            self.glint.queries,
+            self.nodes_per_query(),
+            self.particles_per_query(),
+            self.queries_per_second()
+        )
+    }
+}
+
 /// A rendered image with its statistics.
 #[derive(Clone, Debug)]
 pub struct RenderOutput {
