@@ -3,7 +3,6 @@
 //! Sizes here fit `cargo test`; `cargo xtask validate` runs the same checkers at full size.
 
 mod brdf;
-mod scenes;
 mod sphere;
 mod tree;
 

@@ -3,15 +3,22 @@
 //! - `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--out DIR] [--frames A..B]
 //!   [--smooth] [--threads N]`: renders a scene (default: `scenes/sphere_lights.toml`) to EXR,
 //!   PNG and JSON statistics under `target/render/`.
+//! - `cargo xtask scenes [--quick] [--only NAME] [--update-previews]`: every scene with glints
+//!   and smooth, side by side, a coherent vs per-frame animation, and the Table 1 reproduction
+//!   under `target/scenes/`.
+//! - `cargo xtask assets`: writes the procedural meshes and images of the paper's scenes to
+//!   `scenes/assets/`.
 //! - `cargo xtask validate [--quick]`: the validation suites, written as a Markdown report under
 //!   `target/validate/`; exits non-zero when any check fails.
 //! - `cargo xtask eval [FILE]`: the model as JSON Lines (see DESIGN.md), from FILE or stdin.
 //! - `cargo xtask bench [--quick]`: runs the criterion benchmarks and writes the per-call table
 //!   that the README quotes to `target/bench/summary.md`.
 
+mod assets;
 mod bench;
 mod eval;
 mod render;
+mod scenes;
 mod validate;
 mod validate_brdf;
 mod validate_counts;
@@ -30,6 +37,14 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Render every scene with glints and smooth, side by side, and the Table 1 reproduction.
+    Scenes(scenes::ScenesArgs),
+    /// Write the procedural assets of the paper's scenes to scenes/assets.
+    Assets {
+        /// Where to write them (default: scenes/assets).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
     /// Render a scene file (default: scenes/sphere_lights.toml).
     Render(render::RenderArgs),
     /// Check the model against its definitions by brute force; exit non-zero on any failure.
@@ -61,6 +76,8 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Render(args) => render::run(&args),
+        Command::Scenes(args) => scenes::run(&args),
+        Command::Assets { out } => assets::run(&out.unwrap_or_else(assets::assets_folder)),
         Command::Validate { quick, out } => validate::run(quick, &out),
         Command::Bench { quick, out } => bench::run(quick, &out),
         Command::Eval { file } => {

@@ -34,6 +34,10 @@ pub(crate) struct RenderArgs {
     /// Replace every glint material by its smooth limit (the paper's Fig. 3 comparisons).
     #[arg(long)]
     pub(crate) smooth: bool,
+    /// A new particle set in every frame (per-frame independent glints, for contrast with the
+    /// model's coherent ones).
+    #[arg(long)]
+    pub(crate) per_frame_glints: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
@@ -108,6 +112,7 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         .num_threads(threads)
         .build()
         .context("cannot start the worker threads")?;
+    crate::assets::ensure()?;
     let build_start = std::time::Instant::now();
     let mut scene = load_scene(&scene_path)?;
     let build_seconds = build_start.elapsed().as_secs_f64();
@@ -115,6 +120,10 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         scene.make_smooth();
     }
     let mut settings = scene.settings;
+    if args.per_frame_glints {
+        settings.glint_randomness = glint_tracer::GlintRandomness::PerFrame;
+    }
+    let base_materials = scene.materials.clone();
     if let Some(spp) = args.spp {
         settings.samples_per_pixel = spp;
     }
@@ -147,6 +156,9 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         build_seconds
     );
     for &frame in &frames {
+        if settings.glint_randomness == glint_tracer::GlintRandomness::PerFrame {
+            scene.reseed_glints_for_frame(&base_materials, frame)?;
+        }
         let bar = if args.quiet {
             ProgressBar::hidden()
         } else {
@@ -175,7 +187,13 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         let png = args.out.join(format!("{name}.png"));
         let json = args.out.join(format!("{name}.json"));
         output.image.write_exr(&exr)?;
-        output.image.write_png(&png, settings.exposure)?;
+        match settings.bloom {
+            Some(b) => output
+                .image
+                .bloomed(b.threshold, b.radius, b.strength)
+                .write_png(&png, settings.exposure)?,
+            None => output.image.write_png(&png, settings.exposure)?,
+        }
         let s = output.statistics;
         let stats = statistics_json(&scene_path, frame, &settings, args.smooth, threads, &s);
         std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")

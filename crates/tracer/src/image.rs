@@ -170,6 +170,96 @@ impl RgbImage {
         self.pixels.iter().copied().sum::<DVec3>() / self.pixels.len().max(1) as f64
     }
 
+    /// Bloom, a display post-process (the paper's Fig. 7): the light above `threshold` in each
+    /// channel, blurred by a Gaussian of standard deviation `radius` pixels, times `strength`,
+    /// added to the image. It shows how bright the glints are beyond the display's range.
+    #[must_use]
+    pub fn bloomed(&self, threshold: f64, radius: f64, strength: f64) -> Self {
+        let excess: Vec<DVec3> = self
+            .pixels
+            .iter()
+            .map(|p| (*p - DVec3::splat(threshold)).max(DVec3::ZERO))
+            .collect();
+        let half = (3.0 * radius).ceil().max(1.0) as i64;
+        let kernel: Vec<f64> = (-half..=half)
+            .map(|k| (-0.5 * (k as f64 / radius.max(1e-3)).powi(2)).exp())
+            .collect();
+        let total: f64 = kernel.iter().sum();
+        let (w, h) = (self.width as i64, self.height as i64);
+        let blur = |source: &[DVec3], step: (i64, i64)| -> Vec<DVec3> {
+            let mut out = vec![DVec3::ZERO; source.len()];
+            for y in 0..h {
+                for x in 0..w {
+                    let mut sum = DVec3::ZERO;
+                    for (i, weight) in kernel.iter().enumerate() {
+                        let k = i as i64 - half;
+                        let (sx, sy) = (x + k * step.0, y + k * step.1);
+                        if (0..w).contains(&sx) && (0..h).contains(&sy) {
+                            sum += source[(sy * w + sx) as usize] * *weight;
+                        }
+                    }
+                    out[(y * w + x) as usize] = sum / total;
+                }
+            }
+            out
+        };
+        let glow = blur(&blur(&excess, (1, 0)), (0, 1));
+        Self {
+            width: self.width,
+            height: self.height,
+            pixels: self
+                .pixels
+                .iter()
+                .zip(&glow)
+                .map(|(p, g)| *p + *g * strength)
+                .collect(),
+        }
+    }
+
+    /// Images placed left to right, top-aligned, on black.
+    #[must_use]
+    pub fn side_by_side(images: &[&Self]) -> Self {
+        let width = images.iter().map(|i| i.width).sum();
+        let height = images.iter().map(|i| i.height).max().unwrap_or(0);
+        let mut out = Self::filled(width, height, DVec3::ZERO);
+        let mut x0 = 0;
+        for image in images {
+            for y in 0..image.height {
+                for x in 0..image.width {
+                    out.pixels[y * width + x0 + x] = image.pixels[y * image.width + x];
+                }
+            }
+            x0 += image.width;
+        }
+        out
+    }
+
+    /// The image shrunk by an integer `factor` (box filter over factor × factor blocks).
+    #[must_use]
+    pub fn downsampled(&self, factor: usize) -> Self {
+        let factor = factor.max(1);
+        let (width, height) = ((self.width / factor).max(1), (self.height / factor).max(1));
+        let mut pixels = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                let mut sum = DVec3::ZERO;
+                let mut n = 0.0;
+                for sy in y * factor..((y + 1) * factor).min(self.height) {
+                    for sx in x * factor..((x + 1) * factor).min(self.width) {
+                        sum += self.pixels[sy * self.width + sx];
+                        n += 1.0;
+                    }
+                }
+                pixels.push(sum / n);
+            }
+        }
+        Self {
+            width,
+            height,
+            pixels,
+        }
+    }
+
     /// Writes a linear 32-bit float RGB OpenEXR file.
     ///
     /// # Errors
@@ -287,6 +377,31 @@ mod tests {
             }
         }
         assert_eq!(image.lookup(DVec2::new(f64::NAN, 0.0)), DVec3::ZERO);
+    }
+
+    #[test]
+    fn bloom_spreads_only_the_excess_and_keeps_its_energy() {
+        let mut image = RgbImage::filled(41, 41, DVec3::splat(0.5));
+        image.pixels[20 * 41 + 20] = DVec3::splat(10.5);
+        let bloomed = image.bloomed(1.0, 2.0, 1.0);
+        // Far from the bright pixel nothing changes; the added light sums to the excess (9.5),
+        // since the kernel fits inside the image.
+        assert_eq!(bloomed.pixels[0], DVec3::splat(0.5));
+        let added: f64 = bloomed
+            .pixels
+            .iter()
+            .zip(&image.pixels)
+            .map(|(b, a)| b.x - a.x)
+            .sum();
+        assert!((added - 9.5).abs() < 1e-9, "{added}");
+        let pair = RgbImage::side_by_side(&[&image, &bloomed]);
+        assert_eq!((pair.width, pair.height), (82, 41));
+        assert_eq!(pair.pixels[41 + 20 * 82 + 20], bloomed.pixels[20 * 41 + 20]);
+        let small = image.downsampled(4);
+        assert_eq!((small.width, small.height), (10, 10));
+        // The 10 × 10 blocks cover the top-left 40 × 40 texels, the bright one among them.
+        let expected = (0.5 * 1599.0 + 10.5) / 1600.0;
+        assert!((small.mean().x - expected).abs() < 1e-12);
     }
 
     #[test]

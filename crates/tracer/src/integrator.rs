@@ -47,6 +47,29 @@ pub enum GlintFootprints {
     Never,
 }
 
+/// How a glint material's particles relate across the frames of an animation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GlintRandomness {
+    /// The same particles in every frame: glints appear, persist and vanish coherently (the
+    /// paper's model).
+    #[default]
+    Coherent,
+    /// A new particle set per frame (the material seed mixed with the frame number), like
+    /// per-frame independent noise in the style of Ershov et al.: for contrast, it flickers.
+    PerFrame,
+}
+
+/// Bloom applied to the PNG (the EXR stays linear): see [`crate::image::RgbImage::bloomed`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bloom {
+    /// Radiance above which light spreads.
+    pub threshold: f64,
+    /// The Gaussian's standard deviation in pixels.
+    pub radius: f64,
+    /// The factor on the spread light.
+    pub strength: f64,
+}
+
 /// The pixel filter.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PixelFilter {
@@ -84,6 +107,10 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Bounces before Russian roulette may end a path.
     pub roulette_depth: u32,
+    /// Coherent particles across frames, or a new set per frame.
+    pub glint_randomness: GlintRandomness,
+    /// Bloom on the PNG, if any.
+    pub bloom: Option<Bloom>,
 }
 
 impl Default for RenderSettings {
@@ -101,6 +128,8 @@ impl Default for RenderSettings {
             exposure: 0.0,
             seed: 0,
             roulette_depth: 3,
+            glint_randomness: GlintRandomness::Coherent,
+            bloom: None,
         }
     }
 }

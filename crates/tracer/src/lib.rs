@@ -37,5 +37,7 @@ pub mod shape;
 
 pub use error::TracerError;
 pub use film::{RenderOutput, RenderStatistics, render};
-pub use integrator::{GlintFootprints, IntegratorKind, LightStrategy, RenderSettings};
+pub use integrator::{
+    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, RenderSettings,
+};
 pub use scene::Scene;

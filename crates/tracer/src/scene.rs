@@ -51,6 +51,23 @@ impl Scene {
         }
     }
 
+    /// The materials for camera frame `frame` under the settings' glint randomness: the scene's
+    /// own when coherent, a particle set per frame otherwise (only glint materials change).
+    ///
+    /// # Errors
+    /// A material that cannot be rebuilt (never for materials that built once).
+    pub fn reseed_glints_for_frame(
+        &mut self,
+        base: &[Material],
+        frame: i64,
+    ) -> Result<(), glint_brdf::BrdfError> {
+        let salt = (frame as u64).wrapping_add(1);
+        for (m, original) in self.materials.iter_mut().zip(base) {
+            *m = original.reseeded(salt)?;
+        }
+        Ok(())
+    }
+
     /// Whether any material has glints.
     #[must_use]
     pub fn has_glints(&self) -> bool {

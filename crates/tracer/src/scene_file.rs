@@ -20,7 +20,8 @@ use crate::camera::{Camera, CameraPose, Keyframe};
 use crate::error::TracerError;
 use crate::image::RgbImage;
 use crate::integrator::{
-    GlintFootprints, IntegratorKind, LightStrategy, PixelFilter, RenderSettings,
+    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, PixelFilter,
+    RenderSettings,
 };
 use crate::light::{EnvironmentMap, Light};
 use crate::material::{GlintMaterial, Material, Plastic, Texture};
@@ -89,6 +90,38 @@ struct RenderSection {
     exposure: Option<f64>,
     seed: Option<u64>,
     roulette_depth: Option<u32>,
+    glint_randomness: Option<RandomnessName>,
+    bloom: Option<BloomSection>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum RandomnessName {
+    Coherent,
+    PerFrame,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BloomSection {
+    #[serde(default = "default_bloom_threshold")]
+    threshold: f64,
+    #[serde(default = "default_bloom_radius")]
+    radius: f64,
+    #[serde(default = "default_bloom_strength")]
+    strength: f64,
+}
+
+fn default_bloom_threshold() -> f64 {
+    1.0
+}
+
+fn default_bloom_radius() -> f64 {
+    4.0
+}
+
+fn default_bloom_strength() -> f64 {
+    0.5
 }
 
 #[derive(Clone, Copy, Debug, Deserialize)]
@@ -767,6 +800,38 @@ impl Builder<'_> {
         }
         if let Some(d) = r.roulette_depth {
             s.roulette_depth = d;
+        }
+        if let Some(g) = r.glint_randomness {
+            s.glint_randomness = match g {
+                RandomnessName::Coherent => GlintRandomness::Coherent,
+                RandomnessName::PerFrame => GlintRandomness::PerFrame,
+            };
+        }
+        if let Some(b) = r.bloom {
+            if !(b.threshold >= 0.0 && b.threshold.is_finite()) {
+                return self.fail(
+                    "render.bloom.threshold",
+                    format!("must be finite and ≥ 0, got {}", b.threshold),
+                );
+            }
+            let radius = self.positive("render.bloom.radius", b.radius)?;
+            if !(radius <= 256.0) {
+                return self.fail(
+                    "render.bloom.radius",
+                    format!("at most 256 pixels, got {radius}"),
+                );
+            }
+            if !(b.strength >= 0.0 && b.strength.is_finite()) {
+                return self.fail(
+                    "render.bloom.strength",
+                    format!("must be finite and ≥ 0, got {}", b.strength),
+                );
+            }
+            s.bloom = Some(Bloom {
+                threshold: b.threshold,
+                radius,
+                strength: b.strength,
+            });
         }
         crate::film::validate_settings(&s).map_err(|e| match e {
             TracerError::Settings { setting, problem } => TracerError::Scene {

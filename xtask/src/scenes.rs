@@ -1,0 +1,248 @@
+//! `cargo xtask scenes [--quick] [--only NAME] [--update-previews]`: renders every scene under
+//! `scenes/` with its glint materials and with `--smooth` at equal samples (the paper's Fig. 3
+//! comparison), writes each pair side by side, measures a camera move with coherent and with
+//! per-frame particles, and writes the Table 1 reproduction, all under `target/scenes/`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use glint_tracer::image::RgbImage;
+use glint_tracer::material::Material;
+use glint_tracer::scene_file::load_scene;
+use glint_tracer::{GlintRandomness, RenderSettings, Scene, render};
+
+/// Command-line options of `scenes`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct ScenesArgs {
+    /// A quarter of the pixels and of the samples (at least one).
+    #[arg(long)]
+    quick: bool,
+    /// Only the scene with this file stem.
+    #[arg(long)]
+    only: Option<String>,
+    /// Also write the side-by-side previews into scenes/previews/ (committed for the README).
+    #[arg(long)]
+    update_previews: bool,
+    /// Output folder.
+    #[arg(long, default_value = "target/scenes")]
+    out: PathBuf,
+}
+
+/// The glint parameters of a scene: (N, γ in degrees, α_x, α_y) per glint material part.
+fn glint_parameters(scene: &Scene) -> Vec<(u64, f64, f64, f64)> {
+    fn collect(m: &Material, out: &mut Vec<(u64, f64, f64, f64)>) {
+        match m {
+            Material::Glint(g) => {
+                let p = g.brdf.parameters();
+                let (ax, ay) = p.distribution.alpha();
+                out.push((p.particles, p.gamma.to_degrees(), ax, ay));
+            }
+            Material::Mix(parts) => parts.iter().for_each(|(_, m)| collect(m, out)),
+            _ => {}
+        }
+    }
+    let mut out = vec![];
+    scene.materials.iter().for_each(|m| collect(m, &mut out));
+    out
+}
+
+fn range(values: impl Iterator<Item = f64>, format: impl Fn(f64) -> String) -> String {
+    let values: Vec<f64> = values.collect();
+    let min = values.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if values.is_empty() {
+        "–".into()
+    } else if min == max {
+        format(min)
+    } else {
+        format!("{}–{}", format(min), format(max))
+    }
+}
+
+fn quick_settings(mut settings: RenderSettings, quick: bool) -> RenderSettings {
+    if quick {
+        settings.width = (settings.width / 2).max(1);
+        settings.height = (settings.height / 2).max(1);
+        settings.samples_per_pixel = (settings.samples_per_pixel / 4).max(1);
+    }
+    settings
+}
+
+fn display_image(image: &RgbImage, settings: &RenderSettings) -> RgbImage {
+    match settings.bloom {
+        Some(b) => image.bloomed(b.threshold, b.radius, b.strength),
+        None => image.clone(),
+    }
+}
+
+pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
+    crate::assets::ensure()?;
+    let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let previews = folder.join("previews");
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    if args.update_previews {
+        std::fs::create_dir_all(&previews)?;
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&folder)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .filter(|p| {
+            args.only
+                .as_deref()
+                .is_none_or(|o| p.file_stem().is_some_and(|s| s == o))
+        })
+        .collect();
+    files.sort();
+    let mut table = String::from(
+        "| scene | N | γ | α | resolution, spp | mean nodes visited | mean particles found | glint time | smooth time | glint / smooth |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for path in &files {
+        let name = path
+            .file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        let glint = load_scene(path)?;
+        let mut smooth = load_scene(path)?;
+        smooth.make_smooth();
+        let settings = quick_settings(glint.settings, args.quick);
+        println!(
+            "{name}: {}x{}, {} spp",
+            settings.width, settings.height, settings.samples_per_pixel
+        );
+        let with_glints = render(&glint, &settings, 0.0, &|_, _| {})?;
+        let without = render(&smooth, &settings, 0.0, &|_, _| {})?;
+        let (g, s) = (with_glints.statistics, without.statistics);
+        println!("  glint:  {g}\n  smooth: {s}");
+        let shown = display_image(&with_glints.image, &settings);
+        let shown_smooth = display_image(&without.image, &settings);
+        shown.write_png(&args.out.join(format!("{name}.png")), settings.exposure)?;
+        shown_smooth.write_png(
+            &args.out.join(format!("{name}_smooth.png")),
+            settings.exposure,
+        )?;
+        let pair = RgbImage::side_by_side(&[&shown, &shown_smooth]);
+        pair.write_png(
+            &args.out.join(format!("{name}_compare.png")),
+            settings.exposure,
+        )?;
+        if args.update_previews {
+            let factor = (settings.width as usize).div_ceil(320);
+            pair.downsampled(factor)
+                .write_png(&previews.join(format!("{name}.png")), settings.exposure)?;
+        }
+        let parameters = glint_parameters(&glint);
+        writeln!(
+            table,
+            "| {name} | {} | {} | {} | {}×{}, {} | {:.1} | {:.3} | {:.1} s | {:.1} s | {:.1}× |",
+            range(parameters.iter().map(|p| p.0 as f64), |x| format!(
+                "{x:.0e}"
+            )),
+            range(parameters.iter().map(|p| p.1), |x| format!(
+                "{}°",
+                (x * 1e3).round() / 1e3
+            )),
+            range(parameters.iter().flat_map(|p| [p.2, p.3]), |x| format!(
+                "{x}"
+            )),
+            settings.width,
+            settings.height,
+            settings.samples_per_pixel,
+            g.nodes_per_query(),
+            g.particles_per_query(),
+            g.seconds,
+            s.seconds,
+            g.seconds / s.seconds
+        )?;
+    }
+    if args.only.as_deref().is_none_or(|o| o == "glitter_object") {
+        table.push_str(&animation(
+            &folder.join("glitter_object.toml"),
+            args,
+            &previews,
+        )?);
+    }
+    let table_path = args.out.join("table.md");
+    std::fs::write(&table_path, &table)?;
+    println!("\n{table}\n{}", table_path.display());
+    Ok(())
+}
+
+/// glitter_object's camera move with coherent particles and with a new particle set per frame:
+/// filmstrips of frames 0, 4, …, 20, and, over seven steps of a tenth of a frame (the image moves
+/// by under a pixel per step), the mean absolute change of the glint layer (the image minus the
+/// smooth render) between steps, against the layer's mean magnitude. Coherent glints persist from
+/// step to step; per-frame ones are redrawn every step and flicker.
+fn animation(path: &Path, args: &ScenesArgs, previews: &Path) -> anyhow::Result<String> {
+    let mut scene = load_scene(path)?;
+    let base = scene.materials.clone();
+    let mut settings = scene.settings;
+    settings.width = 240;
+    settings.height = 135;
+    settings.samples_per_pixel = if args.quick { 2 } else { 8 };
+    let mut smooth = load_scene(path)?;
+    smooth.make_smooth();
+    let mut report = String::from(
+        "\n**Animation** (glitter_object's camera move at 240×135; seven steps of 0.1 frame): mean |glint layer| and mean |Δ glint layer| between steps:\n\n",
+    );
+    for randomness in [GlintRandomness::Coherent, GlintRandomness::PerFrame] {
+        let label = match randomness {
+            GlintRandomness::Coherent => "coherent",
+            GlintRandomness::PerFrame => "per_frame",
+        };
+        let mut show = |index: i64, frame: f64| -> anyhow::Result<(RgbImage, Vec<f64>)> {
+            if randomness == GlintRandomness::PerFrame {
+                scene.reseed_glints_for_frame(&base, index)?;
+            }
+            let image = render(&scene, &settings, frame, &|_, _| {})?.image;
+            let reference = render(&smooth, &settings, frame, &|_, _| {})?.image;
+            let layer = image
+                .pixels
+                .iter()
+                .zip(&reference.pixels)
+                .map(|(a, b)| glint_tracer::light::luminance(*a - *b))
+                .collect();
+            Ok((image, layer))
+        };
+        let mut frames = vec![];
+        for frame in (0..=20).step_by(4) {
+            frames.push(show(frame, frame as f64)?.0);
+        }
+        let mut layers = vec![];
+        for step in 0..7 {
+            layers.push(show(100 + step, 0.1 * step as f64)?.1);
+        }
+        let mean_abs = |v: &[f64]| v.iter().map(|x| x.abs()).sum::<f64>() / v.len() as f64;
+        let magnitude = layers.iter().map(|l| mean_abs(l)).sum::<f64>() / layers.len() as f64;
+        let change = layers
+            .windows(2)
+            .map(|w| {
+                mean_abs(
+                    &w[0]
+                        .iter()
+                        .zip(&w[1])
+                        .map(|(a, b)| a - b)
+                        .collect::<Vec<_>>(),
+                )
+            })
+            .sum::<f64>()
+            / (layers.len() - 1) as f64;
+        writeln!(
+            report,
+            "- {label}: |layer| {magnitude:.4}, |Δ| {change:.4} (ratio {:.2})",
+            change / magnitude
+        )?;
+        let strip = RgbImage::side_by_side(&frames.iter().collect::<Vec<_>>());
+        strip.write_png(
+            &args.out.join(format!("animation_{label}.png")),
+            settings.exposure,
+        )?;
+        if args.update_previews {
+            strip.write_png(
+                &previews.join(format!("animation_{label}.png")),
+                settings.exposure,
+            )?;
+        }
+    }
+    Ok(report)
+}
