@@ -84,7 +84,16 @@ fn workspace_root() -> PathBuf {
         .to_path_buf()
 }
 
-pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
+pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result<()> {
+    if renders_only {
+        let mut table = String::new();
+        render_timings(quick, &mut table)?;
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        let path = out.join("renders.md");
+        std::fs::write(&path, &table).with_context(|| format!("writing {}", path.display()))?;
+        println!("{table}\n{}", path.display());
+        return Ok(());
+    }
     let root = workspace_root();
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
     let mut command = Command::new(cargo);
@@ -223,7 +232,7 @@ fn render_timings(quick: bool, table: &mut String) -> anyhow::Result<()> {
         for (name, s) in [("glint", &glint_stats), ("smooth", &smooth_stats)] {
             writeln!(
                 table,
-                "| {threads} | {name} | {:.2} | {:.3} | {} | {:.1} | {:.2} | {:.0} | {} |",
+                "| {threads} | {name} | {:.2} | {:.3} | {} | {:.1} | {:.3} | {:.0} | {} |",
                 s.seconds,
                 s.rays_per_second() * 1e-6,
                 s.glint.queries,

@@ -66,6 +66,9 @@ enum Command {
         /// Shorter measurement times (noisier figures).
         #[arg(long)]
         quick: bool,
+        /// Only the render timings (no criterion benchmarks); written to renders.md.
+        #[arg(long)]
+        renders_only: bool,
         /// Where to write the summary (default: target/bench).
         #[arg(long, default_value = "target/bench")]
         out: std::path::PathBuf,
@@ -79,7 +82,11 @@ fn main() -> anyhow::Result<()> {
         Command::Scenes(args) => scenes::run(&args),
         Command::Assets { out } => assets::run(&out.unwrap_or_else(assets::assets_folder)),
         Command::Validate { quick, out } => validate::run(quick, &out),
-        Command::Bench { quick, out } => bench::run(quick, &out),
+        Command::Bench {
+            quick,
+            renders_only,
+            out,
+        } => bench::run(quick, renders_only, &out),
         Command::Eval { file } => {
             let failed = eval::run(file.as_deref())?;
             if failed > 0 {

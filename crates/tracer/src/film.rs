@@ -60,7 +60,7 @@ impl std::fmt::Display for RenderStatistics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes and {:.2} particles per query, {:.0} queries/s",
+            "{:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes and {:.3} particles per query, {:.0} queries/s",
             self.seconds,
             self.rays_per_second() * 1e-6,
             self.glint.queries,

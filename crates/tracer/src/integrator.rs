@@ -9,6 +9,7 @@
 use glam::{DVec2, DVec3};
 use glint_tree::QueryScratch;
 
+use crate::accel::PrimitiveHit;
 use crate::camera::{RayDifferential, texture_footprint};
 use crate::material::{GlintCounters, ShadingContext};
 use crate::sampler::PixelSampler;
@@ -198,6 +199,69 @@ fn offset_origin(point: DVec3, normal: DVec3, direction: DVec3) -> DVec3 {
     }
 }
 
+/// How emission found by BRDF-sampled rays is weighted.
+#[derive(Clone, Copy, Debug)]
+struct EmissionWeighting {
+    use_light_sampling: bool,
+    use_brdf_hits: bool,
+    light_pick: f64,
+}
+
+impl EmissionWeighting {
+    /// The radiance that `ray` carries back from what it hits (an area light) or, when it
+    /// escapes, from the environment. `previous` is the BRDF density and origin of the sample
+    /// that produced the ray (`None` for camera rays, which see emission unweighted); such
+    /// emission is MIS-weighted against light sampling, or dropped under light-only sampling.
+    fn emitted_along(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        hit: Option<&PrimitiveHit>,
+        previous: Option<(f64, DVec3)>,
+    ) -> DVec3 {
+        let (le, pdf_light) = match hit {
+            None => {
+                let le = scene.escaped(ray.direction);
+                let pdf = |origin: DVec3| -> f64 {
+                    scene
+                        .lights
+                        .iter()
+                        .filter(|l| matches!(l, crate::light::Light::Environment(_)))
+                        .map(|l| l.pdf(origin, ray.direction))
+                        .sum()
+                };
+                (le, previous.map(|(_, origin)| pdf(origin)))
+            }
+            Some(hit) => {
+                let Some(index) = scene.accelerator.primitives()[hit.primitive].light else {
+                    return DVec3::ZERO;
+                };
+                let light = &scene.lights[index as usize];
+                let le = light.emitted(ray.direction, hit.surface.uv);
+                (
+                    le,
+                    previous.map(|(_, origin)| light.pdf(origin, ray.direction)),
+                )
+            }
+        };
+        if le == DVec3::ZERO {
+            return DVec3::ZERO;
+        }
+        match (previous, pdf_light) {
+            (Some((pdf_brdf, _)), Some(pdf_light)) => {
+                if !self.use_brdf_hits {
+                    DVec3::ZERO
+                } else if self.use_light_sampling {
+                    le * power_heuristic(pdf_brdf, pdf_light * self.light_pick)
+                } else {
+                    le
+                }
+            }
+            _ => le,
+        }
+    }
+}
+
 /// The radiance arriving at the camera along `camera_ray`.
 pub fn radiance(
     scene: &Scene,
@@ -218,60 +282,28 @@ pub fn radiance(
     } else {
         0.0
     };
+    let weighting = EmissionWeighting {
+        use_light_sampling,
+        use_brdf_hits,
+        light_pick,
+    };
 
     let mut radiance = DVec3::ZERO;
     let mut throughput = DVec3::ONE;
     let mut ray = camera_ray.ray;
-    // The density of the BRDF sample that produced `ray` (None for camera rays).
+    // The density and origin of the BRDF sample that produced `ray` (None for camera rays).
     let mut previous: Option<(f64, DVec3)> = None;
     let mut depth = 0u32;
     loop {
         state.rays += 1;
         let hit = scene.intersect(&ray, f64::INFINITY);
+        radiance += throughput * weighting.emitted_along(scene, &ray, hit.as_ref(), previous);
         let Some(hit) = hit else {
-            // Escaped: the environment, weighted against light sampling.
-            let le = scene.escaped(ray.direction);
-            if le != DVec3::ZERO {
-                match previous {
-                    None => radiance += throughput * le,
-                    Some((pdf_brdf, origin)) if use_brdf_hits => {
-                        let weight = if use_light_sampling {
-                            let pdf_light: f64 = scene
-                                .lights
-                                .iter()
-                                .map(|l| l.pdf(origin, ray.direction))
-                                .sum::<f64>()
-                                * light_pick;
-                            power_heuristic(pdf_brdf, pdf_light)
-                        } else {
-                            1.0
-                        };
-                        radiance += throughput * le * weight;
-                    }
-                    Some(_) => {}
-                }
-            }
             break;
         };
         let primitive = scene.accelerator.primitives()[hit.primitive];
         let surface = hit.surface;
-        if let Some(light_index) = primitive.light {
-            let light = &scene.lights[light_index as usize];
-            let le = light.emitted(ray.direction, surface.uv);
-            if le != DVec3::ZERO {
-                match previous {
-                    None => radiance += throughput * le,
-                    Some((pdf_brdf, origin)) if use_brdf_hits => {
-                        let weight = if use_light_sampling {
-                            power_heuristic(pdf_brdf, light.pdf(origin, ray.direction) * light_pick)
-                        } else {
-                            1.0
-                        };
-                        radiance += throughput * le * weight;
-                    }
-                    Some(_) => {}
-                }
-            }
+        if primitive.light.is_some() {
             // Emitters do not reflect.
             break;
         }
@@ -344,22 +376,35 @@ pub fn radiance(
         // Extension: sample the BRDF.
         let u_lobe = sampler.next_1d();
         let u_dir = sampler.next_2d();
-        let Some(sample) = material.sample(wi, u_lobe, u_dir, &mut ctx) else {
+        let Some((wo, pdf)) = material.sample_direction_pdf(wi, u_lobe, u_dir, surface.uv) else {
             break;
         };
-        let direction = frame.to_world(sample.wo);
+        let direction = frame.to_world(wo);
         if direction.dot(geometric_normal) <= 0.0 {
             break;
         }
-        throughput *= sample.f * (sample.wo.z / sample.pdf);
-        if !throughput.is_finite() || throughput == DVec3::ZERO {
-            break;
-        }
-        previous = Some((sample.pdf, surface.point));
         ray = Ray {
             origin: offset_origin(surface.point, geometric_normal, direction),
             direction,
         };
+        previous = Some((pdf, surface.point));
+        if depth + 1 >= max_depth {
+            // The last bounce: only emission along this ray can still count, so f (a tree
+            // query for glints) is evaluated only when there is some.
+            state.rays += 1;
+            let next = scene.intersect(&ray, f64::INFINITY);
+            let le = weighting.emitted_along(scene, &ray, next.as_ref(), previous);
+            if le != DVec3::ZERO {
+                let f = material.eval(wi, wo, &mut ctx);
+                radiance += throughput * f * le * (wo.z / pdf);
+            }
+            break;
+        }
+        let f = material.eval(wi, wo, &mut ctx);
+        throughput *= f * (wo.z / pdf);
+        if !throughput.is_finite() || throughput == DVec3::ZERO {
+            break;
+        }
         depth += 1;
         // Russian roulette on the throughput's largest channel.
         if depth >= settings.roulette_depth {

@@ -309,16 +309,30 @@ impl Material {
         if !above(wi) {
             return None;
         }
-        let wo = self.sample_direction(wi, u_lobe, u, ctx.uv)?;
-        let pdf = self.pdf(wi, wo, ctx.uv);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
+        let (wo, pdf) = self.sample_direction_pdf(wi, u_lobe, u, ctx.uv)?;
         Some(MaterialSample {
             wo,
             f: self.eval(wi, wo, ctx),
             pdf,
         })
+    }
+
+    /// The direction of [`Material::sample`] with its density, without evaluating f (which
+    /// costs a tree query for glint materials with a footprint).
+    #[must_use]
+    pub fn sample_direction_pdf(
+        &self,
+        wi: DVec3,
+        u_lobe: f64,
+        u: [f64; 2],
+        uv: DVec2,
+    ) -> Option<(DVec3, f64)> {
+        if !above(wi) {
+            return None;
+        }
+        let wo = self.sample_direction(wi, u_lobe, u, uv)?;
+        let pdf = self.pdf(wi, wo, uv);
+        (pdf > 0.0 && pdf.is_finite()).then_some((wo, pdf))
     }
 
     /// Only the direction of [`Material::sample`].
