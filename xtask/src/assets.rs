@@ -47,7 +47,9 @@ fn write_all(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let mut paths = vec![];
     for (name, bytes) in generate()? {
         let path = out.join(name);
-        let temporary = out.join(format!(".{name}.{}.tmp", std::process::id()));
+        static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let unique = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let temporary = out.join(format!(".{name}.{}.{unique}.tmp", std::process::id()));
         std::fs::write(&temporary, &bytes)
             .with_context(|| format!("writing {}", temporary.display()))?;
         std::fs::rename(&temporary, &path)
@@ -73,13 +75,7 @@ pub(crate) fn ensure() -> anyhow::Result<()> {
 }
 
 fn png_bytes(image: &RgbImage) -> anyhow::Result<Vec<u8>> {
-    let dir = std::env::temp_dir().join(format!("glint-assets-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let path = dir.join("image.png");
-    image.write_png(&path, 0.0)?;
-    let bytes = std::fs::read(&path)?;
-    std::fs::remove_dir_all(&dir)?;
-    Ok(bytes)
+    image.encode_png(0.0).map_err(anyhow::Error::msg)
 }
 
 /// A triangle mesh of a regular parameterization p(u, v) on a (nu + 1) × (nv + 1) vertex grid,

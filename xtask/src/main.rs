@@ -22,6 +22,8 @@ mod scenes;
 mod validate;
 mod validate_brdf;
 mod validate_counts;
+mod validate_stability;
+mod validate_trade;
 
 use clap::{Parser, Subcommand};
 

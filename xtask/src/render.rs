@@ -25,6 +25,12 @@ pub(crate) struct RenderArgs {
     /// Image size as WIDTHxHEIGHT (default: the scene's).
     #[arg(long, value_parser = parse_resolution)]
     pub(crate) resolution: Option<(u32, u32)>,
+    /// The longest path in bounces (default: the scene's).
+    #[arg(long)]
+    pub(crate) max_depth: Option<u32>,
+    /// `path` or `direct` (default: the scene's).
+    #[arg(long, value_parser = parse_integrator)]
+    pub(crate) integrator: Option<glint_tracer::IntegratorKind>,
     /// Output folder.
     #[arg(long, default_value = "target/render")]
     pub(crate) out: PathBuf,
@@ -56,6 +62,14 @@ fn parse_resolution(text: &str) -> Result<(u32, u32), String> {
             .map_err(|e| format!("`{s}` in `{text}`: {e}"))
     };
     Ok((parse(w)?, parse(h)?))
+}
+
+fn parse_integrator(text: &str) -> Result<glint_tracer::IntegratorKind, String> {
+    match text {
+        "path" => Ok(glint_tracer::IntegratorKind::Path),
+        "direct" => Ok(glint_tracer::IntegratorKind::Direct),
+        _ => Err(format!("`{text}`: expected `path` or `direct`")),
+    }
 }
 
 fn parse_frames(text: &str) -> Result<(i64, i64), String> {
@@ -126,6 +140,12 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let base_materials = scene.materials.clone();
     if let Some(spp) = args.spp {
         settings.samples_per_pixel = spp;
+    }
+    if let Some(depth) = args.max_depth {
+        settings.max_depth = depth;
+    }
+    if let Some(integrator) = args.integrator {
+        settings.integrator = integrator;
     }
     if let Some((w, h)) = args.resolution {
         settings.width = w;

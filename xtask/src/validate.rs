@@ -1,7 +1,9 @@
 //! `cargo xtask validate`: the model against its definitions, at full size.
 //!
 //! Suites so far: **geometry** (glint-sphere), **counts** (glint-tree, in
-//! `validate_counts.rs`) and **BRDF** (glint-brdf, in `validate_brdf.rs`). Each check prints one line and adds a section to
+//! `validate_counts.rs`), **BRDF** (glint-brdf, in `validate_brdf.rs`), **stability** (the
+//! extremes matrix, `validate_stability.rs`) and **trade** (speed against accuracy, with a
+//! Pareto plot, `validate_trade.rs`). Each check prints one line and adds a section to
 //! `report.md`; the command fails if any check fails.
 
 use std::fmt::Write as _;
@@ -63,7 +65,7 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
     let mut report = String::new();
     writeln!(
         report,
-        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf).\n",
+        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade.\n",
         if quick { "quick" } else { "full" }
     )?;
     let checks = [
@@ -78,6 +80,8 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
         crate::validate_brdf::samplers(quick, &mut report)?,
         crate::validate_brdf::energy(&mut report)?,
         crate::validate_brdf::convergence(quick, &mut report)?,
+        crate::validate_stability::stability(quick, &mut report)?,
+        crate::validate_trade::trade(quick, out, &mut report)?,
     ];
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("report.md");

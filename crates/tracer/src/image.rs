@@ -2,7 +2,7 @@
 //! wrapping, and writing linear EXR and tone-mapped sRGB PNG.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter};
+use std::io::BufReader;
 use std::path::Path;
 
 use glam::{DVec2, DVec3};
@@ -293,6 +293,24 @@ impl RgbImage {
             .collect()
     }
 
+    /// The tone-mapped 8-bit sRGB PNG (exposure 2^`exposure`, clamped) as bytes.
+    ///
+    /// # Errors
+    /// The encoder's message (only for images too large for PNG).
+    pub fn encode_png(&self, exposure: f64) -> Result<Vec<u8>, String> {
+        let mut bytes = Vec::new();
+        let mut encoder = png::Encoder::new(&mut bytes, self.width as u32, self.height as u32);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+        writer
+            .write_image_data(&self.to_srgb8(exposure))
+            .map_err(|e| e.to_string())?;
+        writer.finish().map_err(|e| e.to_string())?;
+        Ok(bytes)
+    }
+
     /// Writes a tone-mapped 8-bit sRGB PNG (exposure 2^`exposure`, clamped).
     ///
     /// # Errors
@@ -302,17 +320,8 @@ impl RgbImage {
             path: path.to_path_buf(),
             problem,
         };
-        let file = File::create(path).map_err(|e| error(e.to_string()))?;
-        let mut encoder =
-            png::Encoder::new(BufWriter::new(file), self.width as u32, self.height as u32);
-        encoder.set_color(png::ColorType::Rgb);
-        encoder.set_depth(png::BitDepth::Eight);
-        encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let mut writer = encoder.write_header().map_err(|e| error(e.to_string()))?;
-        writer
-            .write_image_data(&self.to_srgb8(exposure))
-            .map_err(|e| error(e.to_string()))?;
-        writer.finish().map_err(|e| error(e.to_string()))
+        let bytes = self.encode_png(exposure).map_err(error)?;
+        std::fs::write(path, bytes).map_err(|e| error(e.to_string()))
     }
 }
 

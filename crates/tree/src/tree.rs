@@ -91,10 +91,10 @@ pub struct CountTreeConfig {
     /// Depths whose splits are computed once when the tree is built (0 to 8; default 6, about
     /// 1 MB): every query passes through the top of the tree.
     pub cached_levels: u32,
-    /// The work guard: after this many nodes, a query adds the expected share of every partial
-    /// node still queued instead of splitting it ([`QueryResult::truncated`] tells). Exact
-    /// evaluation of huge counts (N = 10¹⁵ over a whole tile) would otherwise resolve every
-    /// particle near the conic's boundary.
+    /// The work guard: a query never visits more nodes than this. A partial node whose split
+    /// would queue nodes past the budget adds its expected share instead
+    /// ([`QueryResult::truncated`] tells). Exact evaluation of huge counts (N = 10¹⁵ over a
+    /// whole tile) would otherwise resolve every particle near the conic's boundary.
     pub node_budget: u32,
     /// Particle areas per colour channel (Sec. 3.4, Fig. 8): 0 for none (each particle counts
     /// 1/N), 1 for gray areas, 3 for RGB.
@@ -517,7 +517,8 @@ impl CountTree {
                     continue;
                 }
             }
-            let over_budget = visited > self.config.node_budget;
+            // Every queued node will be visited: split only if the total stays within budget.
+            let over_budget = visited as usize + queue.len() + 4 > self.config.node_budget as usize;
             truncated |= over_budget;
             if over_budget
                 || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)

@@ -1,0 +1,290 @@
+//! `cargo xtask validate`, stability suite: DESIGN.md's extremes matrix through the public API
+//! of glint-brdf (and so glint-tree and glint-sphere): every combination of distribution,
+//! roughness, cone radius, particle count, direction pair and footprint is evaluated, sampled
+//! and given a pdf. A case fails on a panic, a NaN or infinite output, a negative value, a
+//! sample below the horizon, or a query that visits more nodes than the budget allows.
+
+use std::fmt::Write as _;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::time::Instant;
+
+use glam::{DVec2, DVec3};
+use glint_brdf::{Bxdf, DiscreteBrdf, DistributionKind, GlintParameters, Microfacet};
+use glint_tree::{Footprint, QueryScratch};
+
+use crate::validate::{Check, parallel_chunks};
+
+const KINDS: [DistributionKind; 2] = [DistributionKind::Beckmann, DistributionKind::Ggx];
+
+fn alphas(quick: bool) -> Vec<(f64, f64)> {
+    if quick {
+        vec![(1e-4, 1e-4), (0.3, 0.3), (1e-4, 1.0)]
+    } else {
+        vec![
+            (1e-4, 1e-4),
+            (0.01, 0.01),
+            (0.3, 0.3),
+            (1.0, 1.0),
+            (1e-4, 1.0),
+        ]
+    }
+}
+
+fn gammas(quick: bool) -> Vec<f64> {
+    if quick {
+        vec![0.01, 1.0, 60.0]
+    } else {
+        vec![0.01, 0.1, 1.0, 10.0, 60.0]
+    }
+}
+
+fn particle_counts(quick: bool) -> Vec<u64> {
+    if quick {
+        vec![1, 1_000_000_000, 1_000_000_000_000_000]
+    } else {
+        vec![1, 1000, 1_000_000_000, 1_000_000_000_000_000]
+    }
+}
+
+/// (name, ω_i, ω_o)
+fn direction_pairs() -> Vec<(&'static str, DVec3, DVec3)> {
+    let grazing = |x: f64| DVec3::new(x * (1.0 - 1e-12f64).sqrt(), 0.0, 1e-6).normalize();
+    let at = |theta: f64, phi: f64| {
+        DVec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
+    };
+    vec![
+        ("normal, normal", DVec3::Z, DVec3::Z),
+        (
+            "both 1e-6 from the horizon, equal",
+            grazing(1.0),
+            grazing(1.0),
+        ),
+        ("ω_i = ω_o at 60°", at(1.047, 0.3), at(1.047, 0.3)),
+        (
+            "mirror pair at 60°",
+            at(1.047, 0.3),
+            at(1.047, 0.3 + std::f64::consts::PI),
+        ),
+        ("grazing, nearly antipodal", grazing(1.0), grazing(-1.0)),
+        (
+            "ω_o below the horizon",
+            at(0.5, 0.0),
+            DVec3::new(0.3, 0.0, -0.95).normalize(),
+        ),
+        ("NaN ω_o", at(0.5, 0.0), DVec3::new(f64::NAN, 0.0, 1.0)),
+    ]
+}
+
+/// (name, footprint)
+fn footprints() -> Vec<(&'static str, Footprint)> {
+    let square = |uv: DVec2, side: f64| {
+        Footprint::new(uv, DVec2::new(side, 0.0), DVec2::new(0.0, side)).expect("finite")
+    };
+    vec![
+        ("area 1e-14", square(DVec2::new(0.3, 0.6), 1e-7)),
+        ("pixel, side 1e-3", square(DVec2::new(0.71, 0.13), 1e-3)),
+        ("100 texture tiles", square(DVec2::new(0.5, 0.5), 10.0)),
+        (
+            "degenerate (zero area)",
+            Footprint::new(
+                DVec2::new(0.2, 0.2),
+                DVec2::new(1e-3, 0.0),
+                DVec2::new(2e-3, 0.0),
+            )
+            .expect("finite"),
+        ),
+        (
+            "uv 10⁶ from the origin",
+            square(DVec2::new(1e6 + 0.3, -1e6 + 0.7), 1e-3),
+        ),
+    ]
+}
+
+/// What one material's cases found.
+#[derive(Default)]
+struct Outcome {
+    cases: u64,
+    failures: Vec<String>,
+    max_nodes: u32,
+    slowest_seconds: f64,
+}
+
+fn check_material(
+    kind: DistributionKind,
+    alpha: (f64, f64),
+    gamma_degrees: f64,
+    particles: u64,
+) -> Outcome {
+    let mut outcome = Outcome::default();
+    let label = format!(
+        "{kind:?} α = {alpha:?}, γ = {gamma_degrees}°, N = {particles:.0e}",
+        particles = particles as f64
+    );
+    let built = catch_unwind(|| -> Result<DiscreteBrdf, String> {
+        let distribution = Microfacet::new(kind, alpha.0, alpha.1).map_err(|e| e.to_string())?;
+        let mut parameters = GlintParameters::new(distribution);
+        parameters.gamma = gamma_degrees.to_radians();
+        parameters.particles = particles;
+        DiscreteBrdf::new(parameters).map_err(|e| e.to_string())
+    });
+    let brdf = match built {
+        Ok(Ok(brdf)) => brdf,
+        Ok(Err(e)) => {
+            outcome.cases += 1;
+            outcome.failures.push(format!("{label}: rejected: {e}"));
+            return outcome;
+        }
+        Err(_) => {
+            outcome.cases += 1;
+            outcome
+                .failures
+                .push(format!("{label}: panicked while building"));
+            return outcome;
+        }
+    };
+    let budget = brdf.tree().config().node_budget;
+    let mut scratch = QueryScratch::new();
+    for (direction_name, wi, wo) in direction_pairs() {
+        for (footprint_name, footprint) in footprints() {
+            outcome.cases += 1;
+            let case = format!("{label}, {direction_name}, {footprint_name}");
+            let started = Instant::now();
+            let result = catch_unwind(AssertUnwindSafe(|| -> Result<u32, String> {
+                let e = brdf.evaluate(wi, wo, &footprint, &mut scratch);
+                let values = [
+                    e.f_hat.x,
+                    e.f_hat.y,
+                    e.f_hat.z,
+                    e.count,
+                    e.expected_count,
+                    e.d_hat.x,
+                ];
+                if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
+                    return Err(format!("evaluate gave {e:?}"));
+                }
+                if e.nodes_visited > budget + 64 {
+                    return Err(format!(
+                        "{} nodes visited (budget {budget})",
+                        e.nodes_visited
+                    ));
+                }
+                let f = brdf.eval_at(wi, wo, Some(&footprint), &mut scratch);
+                if !f.is_finite() || f.min_element() < 0.0 {
+                    return Err(format!("eval_at gave {f}"));
+                }
+                let pdf = brdf.pdf(wi, wo);
+                if !pdf.is_finite() || pdf < 0.0 {
+                    return Err(format!("pdf gave {pdf}"));
+                }
+                for u in [
+                    [0.0, 0.0, 0.0],
+                    [0.5, 0.25, 0.75],
+                    [0.999_999, 0.999_999, 0.999_999],
+                ] {
+                    if let Some(s) = brdf.sample(wi, u[0], [u[1], u[2]]) {
+                        let ok = s.wo.is_finite()
+                            && s.wo.z > 0.0
+                            && (s.wo.length() - 1.0).abs() < 1e-9
+                            && s.pdf.is_finite()
+                            && s.pdf > 0.0
+                            && s.weight.is_finite()
+                            && s.weight.min_element() >= 0.0;
+                        if !ok {
+                            return Err(format!("sample gave {s:?}"));
+                        }
+                    }
+                }
+                Ok(e.nodes_visited)
+            }));
+            outcome.slowest_seconds = outcome.slowest_seconds.max(started.elapsed().as_secs_f64());
+            match result {
+                Ok(Ok(nodes)) => outcome.max_nodes = outcome.max_nodes.max(nodes),
+                Ok(Err(problem)) => outcome.failures.push(format!("{case}: {problem}")),
+                Err(_) => outcome.failures.push(format!("{case}: panicked")),
+            }
+        }
+    }
+    outcome
+}
+
+pub(crate) fn stability(quick: bool, report: &mut String) -> anyhow::Result<Check> {
+    let mut materials = vec![];
+    for kind in KINDS {
+        for alpha in alphas(quick) {
+            for gamma in gammas(quick) {
+                for particles in particle_counts(quick) {
+                    materials.push((kind, alpha, gamma, particles));
+                }
+            }
+        }
+    }
+    let outcomes = parallel_chunks(materials.len() as u64, 1, |chunk, _| {
+        let (kind, alpha, gamma, particles) = materials[chunk as usize];
+        check_material(kind, alpha, gamma, particles)
+    });
+    let cases: u64 = outcomes.iter().map(|o| o.cases).sum();
+    let failures: Vec<&String> = outcomes.iter().flat_map(|o| &o.failures).collect();
+    let max_nodes = outcomes.iter().map(|o| o.max_nodes).max().unwrap_or(0);
+    let slowest = outcomes
+        .iter()
+        .map(|o| o.slowest_seconds)
+        .fold(0.0, f64::max);
+    writeln!(
+        report,
+        "\n## Stability: the extremes matrix\n\nEvery combination below through glint-brdf's \
+         public API (`evaluate`, `eval_at`, `pdf`, `sample` at three uniform triples). A case \
+         fails on a panic, a NaN or infinite output, a negative value, a sample below the \
+         horizon or not unit, or more nodes than the budget.\n\n\
+         | dimension | values |\n|---|---|\n\
+         | distribution | Beckmann, GGX |\n\
+         | α (α_x, α_y) | {} |\n\
+         | γ | {} |\n\
+         | N | {} |\n\
+         | (ω_i, ω_o) | {} |\n\
+         | footprint | {} |\n\n\
+         {cases} cases, {} failures; at most {max_nodes} nodes visited in one query; the \
+         slowest case took {:.1} ms.\n",
+        alphas(quick)
+            .iter()
+            .map(|a| format!("{a:?}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        gammas(quick)
+            .iter()
+            .map(|g| format!("{g}°"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        particle_counts(quick)
+            .iter()
+            .map(|n| format!("{:.0e}", *n as f64))
+            .collect::<Vec<_>>()
+            .join(", "),
+        direction_pairs()
+            .iter()
+            .map(|d| d.0)
+            .collect::<Vec<_>>()
+            .join("; "),
+        footprints()
+            .iter()
+            .map(|f| f.0)
+            .collect::<Vec<_>>()
+            .join("; "),
+        failures.len(),
+        slowest * 1e3
+    )?;
+    for failure in failures.iter().take(20) {
+        writeln!(report, "- {failure}")?;
+    }
+    Ok(Check {
+        name: "stability: extremes matrix",
+        passed: failures.is_empty(),
+        summary: format!(
+            "{cases} cases, {} failures, max {max_nodes} nodes",
+            failures.len()
+        ),
+    })
+}
