@@ -175,6 +175,7 @@ pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result
         )?;
     }
     render_timings(quick, &mut table)?;
+    scene_table(quick, out, &mut table)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("summary.md");
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -247,6 +248,25 @@ fn render_timings(quick: bool, table: &mut String) -> anyhow::Result<()> {
             )?;
         }
     }
+    Ok(())
+}
+
+/// The paper's Table 1 per scene: `cargo xtask scenes` (quick when `quick`) into `out/scenes`,
+/// its table appended.
+fn scene_table(quick: bool, out: &Path, table: &mut String) -> anyhow::Result<()> {
+    let args = crate::scenes::ScenesArgs {
+        quick,
+        only: None,
+        update_previews: false,
+        out: out.join("scenes"),
+    };
+    crate::scenes::run(&args)?;
+    let scenes = std::fs::read_to_string(args.out.join("table.md"))?;
+    writeln!(
+        table,
+        "\n## The paper's Table 1, per scene (`cargo xtask scenes`{})\n\n{scenes}",
+        if quick { " --quick" } else { "" }
+    )?;
     Ok(())
 }
 

@@ -17,11 +17,13 @@
 mod assets;
 mod bench;
 mod eval;
+mod plot;
 mod render;
 mod scenes;
 mod validate;
 mod validate_brdf;
 mod validate_counts;
+mod validate_render;
 mod validate_stability;
 mod validate_trade;
 

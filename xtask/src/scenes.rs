@@ -17,16 +17,16 @@ use glint_tracer::{GlintRandomness, RenderSettings, Scene, render};
 pub(crate) struct ScenesArgs {
     /// A quarter of the pixels and of the samples (at least one).
     #[arg(long)]
-    quick: bool,
+    pub(crate) quick: bool,
     /// Only the scene with this file stem.
     #[arg(long)]
-    only: Option<String>,
+    pub(crate) only: Option<String>,
     /// Also write the side-by-side previews into scenes/previews/ (committed for the README).
     #[arg(long)]
-    update_previews: bool,
+    pub(crate) update_previews: bool,
     /// Output folder.
     #[arg(long, default_value = "target/scenes")]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
 }
 
 /// The glint parameters of a scene: (N, γ in degrees, α_x, α_y) per glint material part.

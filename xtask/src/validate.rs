@@ -3,7 +3,8 @@
 //! Suites so far: **geometry** (glint-sphere), **counts** (glint-tree, in
 //! `validate_counts.rs`), **BRDF** (glint-brdf, in `validate_brdf.rs`), **stability** (the
 //! extremes matrix, `validate_stability.rs`) and **trade** (speed against accuracy, with a
-//! Pareto plot, `validate_trade.rs`). Each check prints one line and adds a section to
+//! Pareto plot, `validate_trade.rs`) and **renders** (images against the smooth limit and
+//! against exact evaluation, `validate_render.rs`). Each check prints one line and adds a section to
 //! `report.md`; the command fails if any check fails.
 
 use std::fmt::Write as _;
@@ -65,24 +66,74 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
     let mut report = String::new();
     writeln!(
         report,
-        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade.\n",
+        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade, renders.\n",
         if quick { "quick" } else { "full" }
     )?;
-    let checks = [
-        membership(&sizes, &mut report)?,
-        classification(&sizes, &mut report)?,
-        overlap_against_monte_carlo(&sizes, &mut report)?,
-        planar_error_by_size(&sizes, &mut report)?,
-        crate::validate_counts::binomial_moments(quick, &mut report)?,
-        crate::validate_counts::multinomial_splits(quick, &mut report)?,
-        crate::validate_counts::additivity_and_determinism(quick, &mut report)?,
-        crate::validate_counts::coherence(quick, &mut report)?,
-        crate::validate_brdf::samplers(quick, &mut report)?,
-        crate::validate_brdf::energy(&mut report)?,
-        crate::validate_brdf::convergence(quick, &mut report)?,
-        crate::validate_stability::stability(quick, &mut report)?,
-        crate::validate_trade::trade(quick, out, &mut report)?,
-    ];
+    // One step per check; indicatif hides the bar when the output is not a terminal.
+    let bar = indicatif::ProgressBar::new(14);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg:32} [{bar:30}] {pos}/{len} checks, {elapsed}",
+        )
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_message("geometry: membership");
+    let mut checks = Vec::new();
+    let mut step = |name: &str, check: anyhow::Result<Check>| -> anyhow::Result<()> {
+        checks.push(check?);
+        bar.set_message(name.to_string());
+        bar.inc(1);
+        Ok(())
+    };
+    step("geometry: classification", membership(&sizes, &mut report))?;
+    step("geometry: overlap", classification(&sizes, &mut report))?;
+    step(
+        "geometry: planar error",
+        overlap_against_monte_carlo(&sizes, &mut report),
+    )?;
+    step(
+        "counts: binomial",
+        planar_error_by_size(&sizes, &mut report),
+    )?;
+    step(
+        "counts: multinomial",
+        crate::validate_counts::binomial_moments(quick, &mut report),
+    )?;
+    step(
+        "counts: additivity",
+        crate::validate_counts::multinomial_splits(quick, &mut report),
+    )?;
+    step(
+        "counts: coherence",
+        crate::validate_counts::additivity_and_determinism(quick, &mut report),
+    )?;
+    step(
+        "brdf: samplers",
+        crate::validate_counts::coherence(quick, &mut report),
+    )?;
+    step(
+        "brdf: energy",
+        crate::validate_brdf::samplers(quick, &mut report),
+    )?;
+    step(
+        "brdf: convergence",
+        crate::validate_brdf::energy(&mut report),
+    )?;
+    step(
+        "stability",
+        crate::validate_brdf::convergence(quick, out, &mut report),
+    )?;
+    step(
+        "trade",
+        crate::validate_stability::stability(quick, &mut report),
+    )?;
+    step(
+        "renders",
+        crate::validate_trade::trade(quick, out, &mut report),
+    )?;
+    step("done", crate::validate_render::renders(quick, &mut report))?;
+    bar.finish_and_clear();
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("report.md");
     std::fs::write(&path, &report).with_context(|| format!("writing {}", path.display()))?;

@@ -89,7 +89,11 @@ pub(crate) fn energy(report: &mut String) -> anyhow::Result<Check> {
 
 /// Relative RMS difference of f̂ from the smooth BRDF against the 1/√(expected count) law, and
 /// the mean over footprints against the smooth BRDF, as N grows.
-pub(crate) fn convergence(quick: bool, report: &mut String) -> anyhow::Result<Check> {
+pub(crate) fn convergence(
+    quick: bool,
+    out: &std::path::Path,
+    report: &mut String,
+) -> anyhow::Result<Check> {
     let queries: u32 = if quick { 400 } else { 4000 };
     let distribution = Microfacet::new(DistributionKind::Beckmann, 0.2, 0.2)?;
     let (wi, wo) = (direction(0.4, 0.0), direction(0.3, PI + 0.2));
@@ -106,6 +110,7 @@ pub(crate) fn convergence(quick: bool, report: &mut String) -> anyhow::Result<Ch
     )?;
     let mut failures = 0;
     let mut scratch = QueryScratch::new();
+    let (mut measured, mut law) = (vec![], vec![]);
     for exponent in [3, 5, 7, 9, 11, 13, 15] {
         let mut parameters = GlintParameters::new(distribution);
         parameters.particles = 10u64.pow(exponent);
@@ -145,7 +150,35 @@ pub(crate) fn convergence(quick: bool, report: &mut String) -> anyhow::Result<Ch
             nodes / n
         )?;
         let _ = smooth;
+        measured.push((expected, rms));
+        law.push((expected, 1.0 / expected.sqrt()));
     }
+    let plot = crate::plot::Plot {
+        title: "Convergence: relative RMS of f̂ against f".into(),
+        x_label: "expected particles per footprint".into(),
+        y_label: "relative RMS difference".into(),
+        log_x: true,
+        log_y: true,
+        series: vec![
+            crate::plot::Series {
+                name: "measured (N = 10³ … 10¹⁵)".into(),
+                colour: "#c03",
+                points: measured,
+                line: true,
+                labels: vec![],
+            },
+            crate::plot::Series {
+                name: "1/√(expected count)".into(),
+                colour: "#1f5fbf",
+                points: law,
+                line: true,
+                labels: vec![],
+            },
+        ],
+    };
+    std::fs::create_dir_all(out)?;
+    std::fs::write(out.join("convergence.svg"), plot.svg())?;
+    writeln!(report, "\nPlot: `convergence.svg`.")?;
     writeln!(report)?;
     Ok(Check {
         name: "convergence to smooth",

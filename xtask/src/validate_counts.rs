@@ -7,7 +7,7 @@ use glam::DVec2;
 use glint_sphere::SphericalConic;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{
-    beckmann_density, conic_integral_by_sampling, correlation, mean_and_variance,
+    beckmann_density, conic_integral_by_sampling, correlation, ggx_density, mean_and_variance,
     multinomial_chi_square, overlapping_pair_counts,
 };
 use glint_tests::geometry::direction;
@@ -23,16 +23,19 @@ fn square(uv: DVec2, side: f64) -> Footprint {
 /// Monte Carlo, over a grid of N, α (isotropic and anisotropic), γ and incidence.
 pub(crate) fn binomial_moments(quick: bool, report: &mut String) -> anyhow::Result<Check> {
     let queries: u64 = if quick { 1500 } else { 20_000 };
-    // (N, α_x, α_y, γ°, θ_i, footprint side)
-    let grid: [(u64, f64, f64, f64, f64, f64); 8] = [
-        (1_000_000, 0.2, 0.2, 5.0, 0.3, 0.01),
-        (100_000_000, 0.1, 0.1, 1.0, 0.3, 0.002),
-        (10_000, 0.5, 0.5, 20.0, 0.6, 0.1),
-        (1_000_000, 0.05, 0.3, 5.0, 0.4, 0.01),
-        (1_000_000_000, 0.1, 0.1, 0.5, 1.2, 0.0005),
-        (100_000, 0.3, 0.3, 10.0, 1.4, 0.03),
-        (1_000_000, 0.01, 0.01, 2.0, 0.1, 0.01),
-        (10_000_000, 0.2, 0.2, 60.0, 0.8, 0.002),
+    // (distribution, N, α_x, α_y, γ°, θ_i, footprint side)
+    let grid: [(&str, u64, f64, f64, f64, f64, f64); 11] = [
+        ("Beckmann", 1_000_000, 0.2, 0.2, 5.0, 0.3, 0.01),
+        ("Beckmann", 100_000_000, 0.1, 0.1, 1.0, 0.3, 0.002),
+        ("Beckmann", 10_000, 0.5, 0.5, 20.0, 0.6, 0.1),
+        ("Beckmann", 1_000_000, 0.05, 0.3, 5.0, 0.4, 0.01),
+        ("Beckmann", 1_000_000_000, 0.1, 0.1, 0.5, 1.2, 0.0005),
+        ("Beckmann", 100_000, 0.3, 0.3, 10.0, 1.4, 0.03),
+        ("Beckmann", 1_000_000, 0.01, 0.01, 2.0, 0.1, 0.01),
+        ("Beckmann", 10_000_000, 0.2, 0.2, 60.0, 0.8, 0.002),
+        ("GGX", 1_000_000, 0.2, 0.2, 5.0, 0.3, 0.01),
+        ("GGX", 100_000_000, 0.05, 0.3, 1.0, 0.5, 0.002),
+        ("GGX", 10_000, 0.5, 0.5, 20.0, 1.2, 0.1),
     ];
     writeln!(
         report,
@@ -42,13 +45,18 @@ pub(crate) fn binomial_moments(quick: bool, report: &mut String) -> anyhow::Resu
          against 1 − q. Both errors include the one realization's own fluctuation (the tree \
          is one particle set; a texture holds only 1/A independent footprints), see \
          `count_moment_errors`. Pass: |z| < 4.5 and |dispersion − (1 − q)| < 5 sd.\n\n\
-         | N | α_x | α_y | γ | θ_i | side | expected | mean | z | dispersion | ok |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|"
+         | D | N | α_x | α_y | γ | θ_i | side | expected | mean | z | dispersion | ok |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|"
     )?;
     let mut failures = 0;
-    for (index, &(particles, alpha_x, alpha_y, gamma_deg, theta_i, side)) in grid.iter().enumerate()
+    for (index, &(distribution, particles, alpha_x, alpha_y, gamma_deg, theta_i, side)) in
+        grid.iter().enumerate()
     {
-        let density = beckmann_density(alpha_x, alpha_y);
+        let density = if distribution == "GGX" {
+            ggx_density(alpha_x, alpha_y)
+        } else {
+            beckmann_density(alpha_x, alpha_y)
+        };
         let config = CountTreeConfig {
             particles,
             seed: 100 + index as u64,
@@ -100,7 +108,7 @@ pub(crate) fn binomial_moments(quick: bool, report: &mut String) -> anyhow::Resu
         }
         writeln!(
             report,
-            "| {particles:.0e} | {alpha_x} | {alpha_y} | {gamma_deg}° | {theta_i} | {side} | {expected:.4} | {mean:.4} | {z:.2} | {dispersion:.4} | {} |",
+            "| {distribution} | {particles:.0e} | {alpha_x} | {alpha_y} | {gamma_deg}° | {theta_i} | {side} | {expected:.4} | {mean:.4} | {z:.2} | {dispersion:.4} | {} |",
             if ok { "yes" } else { "**no**" }
         )?;
     }

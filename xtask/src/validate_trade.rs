@@ -23,6 +23,7 @@ use glint_tree::{
     CountTree, CountTreeConfig, Footprint, MultinomialMode, QuadratureTolerance, QueryScratch,
 };
 
+use crate::plot::{Plot, Series};
 use crate::validate::Check;
 
 /// One setting of the switches.
@@ -270,92 +271,37 @@ pub(crate) fn trade(quick: bool, out: &Path, report: &mut String) -> anyhow::Res
     })
 }
 
-/// A scatter plot of time per query against p99 error (log scale, errors floored at 1e-6),
-/// one labelled point per setting that keeps the particle set.
+/// Time per query against p99 error (log scale, errors floored at 1e-6 so that exact settings
+/// show), one labelled point per setting that keeps the particle set, per workload.
 fn pareto_svg(sparse: &[Measured], dense: &[Measured]) -> String {
-    let points: Vec<(&str, f64, f64, &str)> = sparse
-        .iter()
-        .map(|m| (m, "#1f5fbf"))
-        .chain(dense.iter().map(|m| (m, "#c03")))
-        .filter_map(|(m, colour)| {
-            m.error.map(|(_, p99)| {
-                (
-                    m.label.as_str(),
-                    m.nanoseconds_per_query / 1e3,
-                    p99.max(1e-6),
-                    colour,
-                )
-            })
-        })
-        .collect();
-    let (width, height, margin) = (640.0, 420.0, 70.0);
-    let t_max = points.iter().map(|p| p.1).fold(0.0, f64::max) * 1.1;
-    let (e_min, e_max) = (1e-6f64.log10(), 1f64.log10());
-    let x = |t: f64| margin + (t / t_max) * (width - 2.0 * margin);
-    let y =
-        |e: f64| height - margin - (e.log10() - e_min) / (e_max - e_min) * (height - 2.0 * margin);
-    let mut svg = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" font-family=\"sans-serif\" font-size=\"12\">\n\
-         <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
-         <text x=\"{}\" y=\"24\" text-anchor=\"middle\" font-size=\"15\">Trade: time per query against p99 error (vs ε = 0)</text>\n\
-         <line x1=\"{margin}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\n\
-         <line x1=\"{margin}\" y1=\"{margin}\" x2=\"{margin}\" y2=\"{}\" stroke=\"black\"/>\n\
-         <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">time per query (µs)</text>\n\
-         <text x=\"18\" y=\"{}\" text-anchor=\"middle\" transform=\"rotate(-90 18 {})\">p99 relative error</text>\n",
-        width / 2.0,
-        height - margin,
-        width - margin,
-        height - margin,
-        height - margin,
-        width / 2.0,
-        height - 25.0,
-        height / 2.0,
-        height / 2.0
-    );
-    for k in 0..=6 {
-        let e = 10f64.powi(-k);
-        writeln!(
-            svg,
-            "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">1e-{k}</text>",
-            margin - 6.0,
-            y(e) + 4.0
-        )
-        .expect("String");
+    let series = |measured: &[Measured], name: &str, colour: &'static str| {
+        let kept: Vec<&Measured> = measured.iter().filter(|m| m.error.is_some()).collect();
+        Series {
+            name: name.into(),
+            colour,
+            points: kept
+                .iter()
+                .map(|m| {
+                    (
+                        m.nanoseconds_per_query / 1e3,
+                        m.error.map_or(0.0, |e| e.1).max(1e-6),
+                    )
+                })
+                .collect(),
+            line: false,
+            labels: kept.iter().map(|m| m.label.clone()).collect(),
+        }
+    };
+    Plot {
+        title: "Trade: time per query against p99 error (vs ε = 0)".into(),
+        x_label: "time per query (µs)".into(),
+        y_label: "p99 relative error (floored at 1e-6)".into(),
+        log_x: true,
+        log_y: true,
+        series: vec![
+            series(sparse, "N = 10⁸ (sparse)", "#1f5fbf"),
+            series(dense, "N = 10¹¹ (dense)", "#c03"),
+        ],
     }
-    for k in 0..=4 {
-        let t = t_max * f64::from(k) / 4.0;
-        writeln!(
-            svg,
-            "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{t:.1}</text>",
-            x(t),
-            height - margin + 18.0
-        )
-        .expect("String");
-    }
-    writeln!(
-        svg,
-        "<circle cx=\"{0}\" cy=\"{1}\" r=\"4\" fill=\"#1f5fbf\"/><text x=\"{2}\" y=\"{3}\">N = 10⁸ (sparse)</text>\n\
-         <circle cx=\"{0}\" cy=\"{4}\" r=\"4\" fill=\"#c03\"/><text x=\"{2}\" y=\"{5}\">N = 10¹¹ (dense)</text>",
-        width - 200.0,
-        margin + 10.0,
-        width - 190.0,
-        margin + 14.0,
-        margin + 28.0,
-        margin + 32.0
-    )
-    .expect("String");
-    for (label, t, e, colour) in points {
-        writeln!(
-            svg,
-            "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"4\" fill=\"{colour}\"/><text x=\"{:.1}\" y=\"{:.1}\" font-size=\"10\">{}</text>",
-            x(t),
-            y(e),
-            x(t) + 7.0,
-            y(e) - 6.0,
-            label.replace('&', "&amp;").replace('<', "&lt;")
-        )
-        .expect("String");
-    }
-    svg.push_str("</svg>\n");
-    svg
+    .svg()
 }
