@@ -164,6 +164,24 @@ impl RgbImage {
         top.lerp(bottom, fy)
     }
 
+    /// Bilinear lookup for a lat-long map: columns wrap (φ is periodic), rows are clamped (the
+    /// poles do not meet). `uv` as in [`RgbImage::lookup`].
+    #[must_use]
+    pub fn lookup_latlong(&self, uv: DVec2) -> DVec3 {
+        if !uv.is_finite() {
+            return DVec3::ZERO;
+        }
+        let x = uv.x * self.width as f64 - 0.5;
+        let y = ((1.0 - uv.y) * self.height as f64 - 0.5).clamp(0.0, (self.height - 1) as f64);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let y1 = (y0 + 1).min(self.height as i64 - 1);
+        let top = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
+        let bottom = self.texel(x0, y1).lerp(self.texel(x0 + 1, y1), fx);
+        top.lerp(bottom, fy)
+    }
+
     /// The mean colour.
     #[must_use]
     pub fn mean(&self) -> DVec3 {
@@ -386,6 +404,11 @@ mod tests {
             }
         }
         assert_eq!(image.lookup(DVec2::new(f64::NAN, 0.0)), DVec3::ZERO);
+        // Lat-long lookups do not blend the top row with the bottom one at the poles.
+        let top_row = image.texel(0, 0).lerp(image.texel(1, 0), 0.0);
+        assert!((image.lookup_latlong(DVec2::new(0.1, 1.0)) - top_row).length() < 1e-12);
+        let bottom_row = image.texel(0, 2);
+        assert!((image.lookup_latlong(DVec2::new(0.1, 0.0)) - bottom_row).length() < 1e-12);
     }
 
     #[test]

@@ -100,7 +100,7 @@ impl EnvironmentMap {
     #[must_use]
     pub fn radiance(&self, direction: DVec3) -> DVec3 {
         let m = self.to_map(direction);
-        self.image.lookup(DVec2::new(m.x, 1.0 - m.y)) * self.scale
+        self.image.lookup_latlong(DVec2::new(m.x, 1.0 - m.y)) * self.scale
     }
 
     /// A direction and its solid-angle density from two uniforms.

@@ -354,10 +354,15 @@ impl Material {
                 if !(total > 0.0) {
                     return None;
                 }
+                // Only components with positive weight can be chosen (rounding in the running
+                // sum must not select a zero-weight component the pdf leaves out).
+                let last = parts.iter().rposition(|(w, _)| *w > 0.0)?;
                 let mut start = 0.0;
-                let last = parts.len() - 1;
                 let mut chosen = None;
                 for (k, (w, m)) in parts.iter().enumerate() {
+                    if !(*w > 0.0) {
+                        continue;
+                    }
                     let p = w / total;
                     if u_lobe < start + p || k == last {
                         let remapped = ((u_lobe - start) / p).clamp(0.0, 1.0 - f64::EPSILON);

@@ -41,8 +41,9 @@ pub struct SurfaceHit {
     pub dpdv: DVec3,
 }
 
-/// A sphere with the (u, v) parameterization u = φ/2π, v = θ/π, θ measured from +y and φ from
-/// +x toward +z: p = c + r (sin θ cos φ, cos θ, sin θ sin φ).
+/// A sphere with the (u, v) parameterization u = φ/2π, v = 1 − θ/π, θ measured from +y and φ
+/// from +x toward −z: p = c + r (sin θ cos φ, cos θ, −sin θ sin φ). An image texture then
+/// appears upright and unmirrored seen from outside (v = 1, the image's top row, at +y).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {
     /// Centre.
@@ -88,21 +89,22 @@ impl Sphere {
     #[must_use]
     pub fn surface_at(&self, normal: DVec3, t: f64) -> SurfaceHit {
         let theta = normal.y.clamp(-1.0, 1.0).acos();
-        let mut phi = normal.z.atan2(normal.x);
+        let mut phi = (-normal.z).atan2(normal.x);
         if phi < 0.0 {
             phi += 2.0 * PI;
         }
         let (sin_theta, cos_theta) = theta.sin_cos();
         let (sin_phi, cos_phi) = phi.sin_cos();
         let r = self.radius;
-        let dpdu = 2.0 * PI * r * DVec3::new(-sin_theta * sin_phi, 0.0, sin_theta * cos_phi);
-        let dpdv = PI * r * DVec3::new(cos_theta * cos_phi, -sin_theta, cos_theta * sin_phi);
+        // ∂p/∂u = 2π ∂p/∂φ; ∂p/∂v = −π ∂p/∂θ (θ = π(1 − v)).
+        let dpdu = 2.0 * PI * r * DVec3::new(-sin_theta * sin_phi, 0.0, -sin_theta * cos_phi);
+        let dpdv = -PI * r * DVec3::new(cos_theta * cos_phi, -sin_theta, -cos_theta * sin_phi);
         SurfaceHit {
             t,
             point: self.center + r * normal,
             geometric_normal: normal,
             shading_normal: normal,
-            uv: DVec2::new(phi / (2.0 * PI), theta / PI),
+            uv: DVec2::new(phi / (2.0 * PI), 1.0 - theta / PI),
             dpdu,
             dpdv,
         }
@@ -281,14 +283,13 @@ mod tests {
             radius: 0.7,
         };
         let point_at = |uv: DVec2| {
-            let (phi, theta) = (2.0 * PI * uv.x, PI * uv.y);
-            sphere.center
-                + sphere.radius
-                    * DVec3::new(
-                        theta.sin() * phi.cos(),
-                        theta.cos(),
-                        theta.sin() * phi.sin(),
-                    )
+            let (phi, theta) = (2.0 * PI * uv.x, PI * (1.0 - uv.y));
+            let direction = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            );
+            sphere.center + sphere.radius * direction
         };
         let mut hits = 0;
         for i in 0..200 {
