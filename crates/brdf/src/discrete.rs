@@ -334,16 +334,8 @@ impl Bxdf for DiscreteBrdf {
     /// around ω′ from `u_lobe`, split into two 26-bit uniforms (its even and odd bits). The
     /// weight is f_smooth·cos θ_o / pdf.
     fn sample(&self, wi: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<BxdfSample> {
-        if !above_horizon(wi) {
-            return None;
-        }
+        let wo = self.sample_direction(wi, u_lobe, u)?;
         let wi = wi.normalize();
-        let centre = self.sampler.sample(wi, 0.0, u)?.wo;
-        let [a, b] = split_uniform(u_lobe);
-        let wo = uniform_in_cone(centre, self.parameters.gamma, a, b);
-        if !above_horizon(wo) {
-            return None;
-        }
         BxdfSample::weighted(wo, self.smooth.eval(wi, wo), self.pdf(wi, wo))
     }
 
@@ -369,6 +361,23 @@ impl Bxdf for DiscreteBrdf {
             }
         }
         sum / self.cone_points.len() as f64
+    }
+}
+
+impl DiscreteBrdf {
+    /// The direction of [`Bxdf::sample`] alone: ω′ from the widened smooth model with `u`, then
+    /// ω_o uniform in the cone of radius γ around ω′ from `u_lobe`. For a renderer that
+    /// evaluates f̂ and the pdf itself (the pdf's QMC convolution is the sampler's main cost).
+    #[must_use]
+    pub fn sample_direction(&self, wi: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<DVec3> {
+        if !above_horizon(wi) {
+            return None;
+        }
+        let wi = wi.normalize();
+        let centre = self.sampler.sample_direction(wi, u)?;
+        let [a, b] = split_uniform(u_lobe);
+        let wo = uniform_in_cone(centre, self.parameters.gamma, a, b);
+        above_horizon(wo).then_some(wo)
     }
 }
 

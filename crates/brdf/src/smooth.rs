@@ -100,6 +100,20 @@ impl MicrofacetBrdf {
         &self.fresnel
     }
 
+    /// The direction of [`Bxdf::sample`] alone (no evaluation, no pdf).
+    #[must_use]
+    pub fn sample_direction(&self, wi: DVec3, u: [f64; 2]) -> Option<DVec3> {
+        if !above_horizon(wi) {
+            return None;
+        }
+        let m = match self.sampling {
+            NormalSampling::Distribution => self.distribution.sample_normal(u),
+            NormalSampling::Visible => self.distribution.sample_visible_normal(wi, u),
+        };
+        let wo = reflect(wi, m);
+        (above_horizon(wo) && wi.dot(m) > 0.0).then_some(wo)
+    }
+
     /// The density of the facet normal m that `sample` draws for ω_i.
     fn normal_pdf(&self, wi: DVec3, m: DVec3) -> f64 {
         match self.sampling {
@@ -125,17 +139,7 @@ impl Bxdf for MicrofacetBrdf {
 
     /// Draws m (from p(m) or the visible normals), reflects ω_i about it; `u_lobe` is unused.
     fn sample(&self, wi: DVec3, _u_lobe: f64, u: [f64; 2]) -> Option<BxdfSample> {
-        if !above_horizon(wi) {
-            return None;
-        }
-        let m = match self.sampling {
-            NormalSampling::Distribution => self.distribution.sample_normal(u),
-            NormalSampling::Visible => self.distribution.sample_visible_normal(wi, u),
-        };
-        let wo = reflect(wi, m);
-        if !above_horizon(wo) || wi.dot(m) <= 0.0 {
-            return None;
-        }
+        let wo = self.sample_direction(wi, u)?;
         BxdfSample::weighted(wo, self.eval(wi, wo), self.pdf(wi, wo))
     }
 

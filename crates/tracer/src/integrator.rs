@@ -208,6 +208,22 @@ struct EmissionWeighting {
 }
 
 impl EmissionWeighting {
+    /// Whether a BRDF-sampled `ray` that hit `hit` (or escaped) would add any emission: a
+    /// cheap test before the BRDF's pdf and value are computed.
+    fn finds_emission(&self, scene: &Scene, ray: &Ray, hit: Option<&PrimitiveHit>) -> bool {
+        if !self.use_brdf_hits {
+            return false;
+        }
+        match hit {
+            None => scene.escaped(ray.direction) != DVec3::ZERO,
+            Some(hit) => scene.accelerator.primitives()[hit.primitive]
+                .light
+                .is_some_and(|i| {
+                    scene.lights[i as usize].emitted(ray.direction, hit.surface.uv) != DVec3::ZERO
+                }),
+        }
+    }
+
     /// The radiance that `ray` carries back from what it hits (an area light) or, when it
     /// escapes, from the environment. `previous` is the BRDF density and origin of the sample
     /// that produced the ray (`None` for camera rays, which see emission unweighted); such
@@ -376,7 +392,7 @@ pub fn radiance(
         // Extension: sample the BRDF.
         let u_lobe = sampler.next_1d();
         let u_dir = sampler.next_2d();
-        let Some((wo, pdf)) = material.sample_direction_pdf(wi, u_lobe, u_dir, surface.uv) else {
+        let Some(wo) = material.sample_direction(wi, u_lobe, u_dir, surface.uv) else {
             break;
         };
         let direction = frame.to_world(wo);
@@ -387,19 +403,27 @@ pub fn radiance(
             origin: offset_origin(surface.point, geometric_normal, direction),
             direction,
         };
-        previous = Some((pdf, surface.point));
         if depth + 1 >= max_depth {
-            // The last bounce: only emission along this ray can still count, so f (a tree
-            // query for glints) is evaluated only when there is some.
+            // The last bounce: only emission along this ray can still count, so the pdf (a QMC
+            // convolution for glints) and f (a tree query) are computed only when there is some.
             state.rays += 1;
             let next = scene.intersect(&ray, f64::INFINITY);
-            let le = weighting.emitted_along(scene, &ray, next.as_ref(), previous);
-            if le != DVec3::ZERO {
-                let f = material.eval(wi, wo, &mut ctx);
-                radiance += throughput * f * le * (wo.z / pdf);
+            if weighting.finds_emission(scene, &ray, next.as_ref()) {
+                let pdf = material.pdf(wi, wo, surface.uv);
+                if pdf > 0.0 && pdf.is_finite() {
+                    let previous = Some((pdf, surface.point));
+                    let le = weighting.emitted_along(scene, &ray, next.as_ref(), previous);
+                    let f = material.eval(wi, wo, &mut ctx);
+                    radiance += throughput * f * le * (wo.z / pdf);
+                }
             }
             break;
         }
+        let pdf = material.pdf(wi, wo, surface.uv);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            break;
+        }
+        previous = Some((pdf, surface.point));
         let f = material.eval(wi, wo, &mut ctx);
         throughput *= f * (wo.z / pdf);
         if !throughput.is_finite() || throughput == DVec3::ZERO {

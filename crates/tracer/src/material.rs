@@ -335,20 +335,28 @@ impl Material {
         (pdf > 0.0 && pdf.is_finite()).then_some((wo, pdf))
     }
 
-    /// Only the direction of [`Material::sample`].
-    fn sample_direction(&self, wi: DVec3, u_lobe: f64, u: [f64; 2], uv: DVec2) -> Option<DVec3> {
+    /// Only the direction of [`Material::sample`] (no pdf, no f): a renderer that may not need
+    /// them for this direction computes them itself.
+    #[must_use]
+    pub fn sample_direction(
+        &self,
+        wi: DVec3,
+        u_lobe: f64,
+        u: [f64; 2],
+        uv: DVec2,
+    ) -> Option<DVec3> {
         let wo = match self {
             Self::Diffuse(_) => sample_cosine_hemisphere(u),
-            Self::Microfacet(brdf) => brdf.sample(wi, u_lobe, u)?.wo,
+            Self::Microfacet(brdf) => brdf.sample_direction(wi, u)?,
             Self::Plastic(plastic) => {
                 let p = plastic.coat_probability(wi, uv);
                 if u_lobe < p {
-                    plastic.coat.sample(wi, u_lobe / p, u)?.wo
+                    plastic.coat.sample_direction(wi, u)?
                 } else {
                     sample_cosine_hemisphere(u)
                 }
             }
-            Self::Glint(glint) => glint.brdf.sample(wi, u_lobe, u)?.wo,
+            Self::Glint(glint) => glint.brdf.sample_direction(wi, u_lobe, u)?,
             Self::Mix(parts) => {
                 let total: f64 = parts.iter().map(|(w, _)| *w).sum();
                 if !(total > 0.0) {
