@@ -207,13 +207,8 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         let png = args.out.join(format!("{name}.png"));
         let json = args.out.join(format!("{name}.json"));
         output.image.write_exr(&exr)?;
-        match settings.bloom {
-            Some(b) => output
-                .image
-                .bloomed(b.threshold, b.radius, b.strength)
-                .write_png(&png, settings.exposure)?,
-            None => output.image.write_png(&png, settings.exposure)?,
-        }
+        crate::scenes::display_image(&output.image, &settings)
+            .write_png(&png, settings.exposure)?;
         let s = output.statistics;
         let stats = statistics_json(&scene_path, frame, &settings, args.smooth, threads, &s);
         std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")

@@ -69,7 +69,8 @@ fn quick_settings(mut settings: RenderSettings, quick: bool) -> RenderSettings {
     settings
 }
 
-fn display_image(image: &RgbImage, settings: &RenderSettings) -> RgbImage {
+/// The image as shown in a PNG: with the settings' bloom, if any.
+pub(crate) fn display_image(image: &RgbImage, settings: &RenderSettings) -> RgbImage {
     match settings.bloom {
         Some(b) => image.bloomed(b.threshold, b.radius, b.strength),
         None => image.clone(),

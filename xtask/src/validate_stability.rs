@@ -166,7 +166,7 @@ fn check_material(
                 if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
                     return Err(format!("evaluate gave {e:?}"));
                 }
-                if e.nodes_visited > budget + 64 {
+                if e.nodes_visited > budget {
                     return Err(format!(
                         "{} nodes visited (budget {budget})",
                         e.nodes_visited

@@ -45,7 +45,7 @@
 use glam::DVec3;
 use glint_sphere::{ConeRadius, SphericalConic};
 use glint_tree::{
-    CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch,
+    CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryResult, QueryScratch,
     expected_conic_solid_angle,
 };
 
@@ -130,6 +130,15 @@ pub struct FootprintEvaluation {
     pub count: f64,
     /// Tree nodes visited.
     pub nodes_visited: u32,
+}
+
+/// One tree query with the unit directions and conic it was made for.
+struct ConicQuery {
+    wi: DVec3,
+    wo: DVec3,
+    conic: SphericalConic,
+    result: QueryResult,
+    f_hat: DVec3,
 }
 
 /// The discrete stochastic microfacet BRDF of a material.
@@ -235,34 +244,50 @@ impl DiscreteBrdf {
         footprint: &Footprint,
         scratch: &mut QueryScratch,
     ) -> GlintEvaluation {
-        let zero = GlintEvaluation {
-            f_hat: DVec3::ZERO,
-            f_smooth: DVec3::ZERO,
-            count: 0.0,
-            expected_count: 0.0,
-            d_hat: DVec3::ZERO,
-            nodes_visited: 0,
+        let Some(query) = self.query(wi, wo, footprint, scratch) else {
+            return GlintEvaluation {
+                f_hat: DVec3::ZERO,
+                f_smooth: DVec3::ZERO,
+                count: 0.0,
+                expected_count: 0.0,
+                d_hat: DVec3::ZERO,
+                nodes_visited: 0,
+            };
         };
+        GlintEvaluation {
+            f_hat: query.f_hat,
+            f_smooth: self.smooth.eval(query.wi, query.wo),
+            count: query.result.count,
+            expected_count: self.tree.expected_count(footprint, &query.conic, scratch),
+            d_hat: DVec3::from_array(query.result.d_hat),
+            nodes_visited: query.result.nodes_visited,
+        }
+    }
+
+    /// The tree query of Eq. 6 for (ω_i, ω_o) and f̂ from it (Eq. 5): the work every evaluation
+    /// shares. `None` for directions not above the horizon or an invalid conic.
+    fn query(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        footprint: &Footprint,
+        scratch: &mut QueryScratch,
+    ) -> Option<ConicQuery> {
         if !(above_horizon(wi) && above_horizon(wo)) {
-            return zero;
+            return None;
         }
         let (wi, wo) = (wi.normalize(), wo.normalize());
-        let Ok(conic) = SphericalConic::with_cone(wi, wo, &self.cone) else {
-            return zero;
-        };
+        let conic = SphericalConic::with_cone(wi, wo, &self.cone).ok()?;
         let result = self.tree.query(footprint, &conic, scratch);
-        let expected_count = self.tree.expected_count(footprint, &conic, scratch);
-        let d_hat = DVec3::from_array(result.d_hat);
-        let f_smooth = self.smooth.eval(wi, wo);
-        let f_hat = self.f_hat_from_d_hat(wi, wo, d_hat, footprint.area());
-        GlintEvaluation {
+        let f_hat =
+            self.f_hat_from_d_hat(wi, wo, DVec3::from_array(result.d_hat), footprint.area());
+        Some(ConicQuery {
+            wi,
+            wo,
+            conic,
+            result,
             f_hat,
-            f_smooth,
-            count: result.count,
-            expected_count,
-            d_hat,
-            nodes_visited: result.nodes_visited,
-        }
+        })
     }
 
     /// f̂ for a footprint, or the smooth BRDF when there is none (paths after the first bounce).
@@ -290,23 +315,17 @@ impl DiscreteBrdf {
         footprint: &Footprint,
         scratch: &mut QueryScratch,
     ) -> FootprintEvaluation {
-        let none = FootprintEvaluation {
-            f_hat: DVec3::ZERO,
-            count: 0.0,
-            nodes_visited: 0,
-        };
-        if !(above_horizon(wi) && above_horizon(wo)) {
-            return none;
-        }
-        let (wi, wo) = (wi.normalize(), wo.normalize());
-        let Ok(conic) = SphericalConic::with_cone(wi, wo, &self.cone) else {
-            return none;
-        };
-        let result = self.tree.query(footprint, &conic, scratch);
-        FootprintEvaluation {
-            f_hat: self.f_hat_from_d_hat(wi, wo, DVec3::from_array(result.d_hat), footprint.area()),
-            count: result.count,
-            nodes_visited: result.nodes_visited,
+        match self.query(wi, wo, footprint, scratch) {
+            Some(query) => FootprintEvaluation {
+                f_hat: query.f_hat,
+                count: query.result.count,
+                nodes_visited: query.result.nodes_visited,
+            },
+            None => FootprintEvaluation {
+                f_hat: DVec3::ZERO,
+                count: 0.0,
+                nodes_visited: 0,
+            },
         }
     }
 
@@ -405,9 +424,10 @@ pub fn uniform_in_cone(axis: DVec3, gamma: f64, u: f64, v: f64) -> DVec3 {
     ((1.0 - one_minus_cos) * axis + sin_theta * (phi.cos() * t + phi.sin() * s)).normalize()
 }
 
-/// Two unit vectors completing unit `axis` to a right-handed orthonormal basis (Duff et al.
-/// 2017, "Building an Orthonormal Basis, Revisited").
-fn orthonormal_basis(axis: DVec3) -> (DVec3, DVec3) {
+/// Two unit vectors (t, b) completing unit `axis` to a right-handed orthonormal basis,
+/// t × b = axis (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
+#[must_use]
+pub fn orthonormal_basis(axis: DVec3) -> (DVec3, DVec3) {
     let sign = 1.0_f64.copysign(axis.z);
     let a = -1.0 / (sign + axis.z);
     let b = axis.x * axis.y * a;
@@ -420,6 +440,21 @@ fn orthonormal_basis(axis: DVec3) -> (DVec3, DVec3) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn basis_is_orthonormal_and_right_handed() {
+        for n in [
+            DVec3::Z,
+            -DVec3::Z,
+            DVec3::new(0.3, -0.4, 0.866).normalize(),
+            DVec3::X,
+        ] {
+            let (t, b) = orthonormal_basis(n);
+            assert!(t.dot(b).abs() < 1e-12 && t.dot(n).abs() < 1e-12 && b.dot(n).abs() < 1e-12);
+            assert!((t.length() - 1.0).abs() < 1e-12 && (b.length() - 1.0).abs() < 1e-12);
+            assert!((t.cross(b) - n).length() < 1e-12);
+        }
+    }
 
     #[test]
     fn split_uniform_gives_two_uniforms() {

@@ -207,13 +207,8 @@ mod tests {
     /// occlusion answers equal a linear scan over every primitive.
     #[test]
     fn bvh_agrees_with_brute_force() {
-        let mut state = 12345u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64) / (1u64 << 53) as f64
-        };
+        let mut rng = glint_tests::SplitMix64::new(12345u64);
+        let mut next = move || rng.uniform();
         let mut random_point =
             |scale: f64| DVec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * scale;
         let mut mesh = Mesh::default();

@@ -151,32 +151,35 @@ impl RgbImage {
     /// the rectangle's parameterization), repeating.
     #[must_use]
     pub fn lookup(&self, uv: DVec2) -> DVec3 {
-        if !uv.is_finite() {
-            return DVec3::ZERO;
-        }
-        let x = uv.x * self.width as f64 - 0.5;
-        let y = (1.0 - uv.y) * self.height as f64 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
-        let bottom = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
-        top.lerp(bottom, fy)
+        self.bilinear(uv, false)
     }
 
     /// Bilinear lookup for a lat-long map: columns wrap (φ is periodic), rows are clamped (the
     /// poles do not meet). `uv` as in [`RgbImage::lookup`].
     #[must_use]
     pub fn lookup_latlong(&self, uv: DVec2) -> DVec3 {
+        self.bilinear(uv, true)
+    }
+
+    /// Bilinear interpolation between texel centres; columns always wrap, rows wrap unless
+    /// `clamp_rows`.
+    fn bilinear(&self, uv: DVec2, clamp_rows: bool) -> DVec3 {
         if !uv.is_finite() {
             return DVec3::ZERO;
         }
         let x = uv.x * self.width as f64 - 0.5;
-        let y = ((1.0 - uv.y) * self.height as f64 - 0.5).clamp(0.0, (self.height - 1) as f64);
+        let mut y = (1.0 - uv.y) * self.height as f64 - 0.5;
+        if clamp_rows {
+            y = y.clamp(0.0, (self.height - 1) as f64);
+        }
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let y1 = (y0 + 1).min(self.height as i64 - 1);
+        let y1 = if clamp_rows {
+            (y0 + 1).min(self.height as i64 - 1)
+        } else {
+            y0 + 1
+        };
         let top = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
         let bottom = self.texel(x0, y1).lerp(self.texel(x0 + 1, y1), fx);
         top.lerp(bottom, fy)

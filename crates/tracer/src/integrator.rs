@@ -14,7 +14,8 @@ use crate::camera::{RayDifferential, texture_footprint};
 use crate::material::{GlintCounters, ShadingContext};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
-use crate::shape::{Ray, orthonormal_basis};
+use crate::shape::Ray;
+use glint_brdf::discrete::orthonormal_basis;
 
 /// Which integrator.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -7,10 +7,12 @@ use std::f64::consts::PI;
 
 use glam::{DVec2, DVec3};
 
+use glint_brdf::discrete::uniform_in_cone;
+
 use crate::distribution::Distribution2D;
 use crate::image::RgbImage;
 use crate::material::Texture;
-use crate::shape::{Ray, Rectangle, Sphere, orthonormal_basis};
+use crate::shape::{Ray, Rectangle, Sphere};
 
 /// A light's answer to "which direction should this point look at?".
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -124,6 +126,11 @@ impl EnvironmentMap {
     }
 }
 
+/// The density of directions uniform in a cone of half-angle θ_max: 1/(2π(1 − cos θ_max)).
+fn sphere_cone_pdf(theta_max: f64) -> f64 {
+    1.0 / (4.0 * PI * (0.5 * theta_max).sin().powi(2))
+}
+
 /// A light.
 #[derive(Clone, Debug)]
 pub enum Light {
@@ -189,18 +196,11 @@ impl Light {
                 if !(d2 > r2) {
                     return None;
                 }
-                let sin2_max = r2 / d2;
-                let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
-                let one_minus_cos_max = sin2_max / (1.0 + cos_max);
-                let one_minus_cos = u[0] * one_minus_cos_max;
-                let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
-                let phi = 2.0 * PI * u[1];
+                // The cone's half-angle θ_max = asin(r/d); 1 − cos θ_max = 2 sin²(θ_max/2) stays
+                // accurate for tiny, distant spheres.
+                let theta_max = (r2 / d2).sqrt().asin();
                 let axis = to_center / d2.sqrt();
-                let (t, b) = orthonormal_basis(axis);
-                let direction = (sin_theta * phi.cos() * t
-                    + sin_theta * phi.sin() * b
-                    + (1.0 - one_minus_cos) * axis)
-                    .normalize();
+                let direction = uniform_in_cone(axis, theta_max, u[0], u[1]);
                 let ray = Ray {
                     origin: point,
                     direction,
@@ -213,7 +213,7 @@ impl Light {
                 Some(LightSample {
                     direction,
                     radiance: *radiance,
-                    pdf: 1.0 / (2.0 * PI * one_minus_cos_max),
+                    pdf: sphere_cone_pdf(theta_max),
                     distance,
                     is_delta: false,
                 })
@@ -283,9 +283,7 @@ impl Light {
                 if sphere.intersect(&ray, 0.0, f64::INFINITY).is_none() {
                     return 0.0;
                 }
-                let sin2_max = r2 / d2;
-                let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
-                1.0 / (2.0 * PI * sin2_max / (1.0 + cos_max))
+                sphere_cone_pdf((r2 / d2).sqrt().asin())
             }
             Self::Rectangle {
                 rectangle,
@@ -364,13 +362,8 @@ mod tests {
     #[test]
     fn light_pdfs_match_their_definitions() {
         let point = DVec3::new(0.1, 0.2, 0.3);
-        let mut state = 7u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64) / (1u64 << 53) as f64
-        };
+        let mut rng = glint_tests::SplitMix64::new(7u64);
+        let mut next = move || rng.uniform();
         for (k, light) in lights().iter().enumerate() {
             let n = 200_000;
             let mut inverse_pdf_sum = 0.0;

@@ -470,13 +470,8 @@ mod tests {
                 );
                 let samples = 40_000;
                 let mut estimate = DVec3::ZERO;
-                let mut state = 99u64 + k as u64;
-                let mut next = || {
-                    state = state
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    ((state >> 11) as f64) / (1u64 << 53) as f64
-                };
+                let mut rng = glint_tests::SplitMix64::new(99u64 + k as u64);
+                let mut next = move || rng.uniform();
                 for _ in 0..samples {
                     let (a, b, c) = (next(), next(), next());
                     if let Some(s) = material.sample(wi, a, [b, c], &mut ctx) {

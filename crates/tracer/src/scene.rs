@@ -51,8 +51,9 @@ impl Scene {
         }
     }
 
-    /// The materials for camera frame `frame` under the settings' glint randomness: the scene's
-    /// own when coherent, a particle set per frame otherwise (only glint materials change).
+    /// Sets the materials to `base` with a particle set of their own for camera frame `frame`
+    /// (per-frame glint randomness; only glint materials change). Coherent animations do not
+    /// call this.
     ///
     /// # Errors
     /// A material that cannot be rebuilt (never for materials that built once).

@@ -230,18 +230,6 @@ impl Rectangle {
     }
 }
 
-/// An orthonormal basis (t, b) completing the unit vector `n` (Duff et al. 2017).
-#[must_use]
-pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -344,20 +332,5 @@ mod tests {
         let outside = ray(DVec3::new(0.5, 4.0, 2.0), rect.point(1.2, 0.5));
         assert_eq!(rect.intersect(&outside, 0.0, f64::INFINITY), None);
         assert!(Rectangle::new(DVec3::ZERO, DVec3::X, 2.0 * DVec3::X).is_none());
-    }
-
-    #[test]
-    fn basis_is_orthonormal() {
-        for n in [
-            DVec3::Z,
-            -DVec3::Z,
-            DVec3::new(0.3, -0.4, 0.866).normalize(),
-            DVec3::X,
-        ] {
-            let (t, b) = orthonormal_basis(n);
-            assert!(t.dot(b).abs() < 1e-12 && t.dot(n).abs() < 1e-12 && b.dot(n).abs() < 1e-12);
-            assert!((t.length() - 1.0).abs() < 1e-12 && (b.length() - 1.0).abs() < 1e-12);
-            assert!((t.cross(b) - n).length() < 1e-12);
-        }
     }
 }
