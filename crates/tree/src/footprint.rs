@@ -39,6 +39,21 @@ struct RowTranslates {
     inside: std::ops::RangeInclusive<i64>,
 }
 
+/// ⌊x⌋ as an integer, saturating (NaN gives 0, like `x.floor() as i64`). `f64::floor` is a
+/// libm call on x86-64's baseline, and box overlaps take eight of these.
+#[inline]
+fn floor_to_i64(x: f64) -> i64 {
+    let truncated = x as i64;
+    truncated.saturating_sub(i64::from(truncated as f64 > x))
+}
+
+/// ⌈x⌉ as an integer, saturating (NaN gives 0).
+#[inline]
+fn ceil_to_i64(x: f64) -> i64 {
+    let truncated = x as i64;
+    truncated.saturating_add(i64::from((truncated as f64) < x))
+}
+
 /// The number of integers in a range (0 when empty).
 fn range_len(range: &std::ops::RangeInclusive<i64>) -> u64 {
     if range.is_empty() {
@@ -55,6 +70,15 @@ pub struct BoxOverlap {
     pub inside: u64,
     /// Translates that cut the box (0 when the box is resolved).
     pub partial: u64,
+}
+
+impl BoxOverlap {
+    /// Whether no translate meets the box.
+    #[inline]
+    #[must_use]
+    pub fn is_disjoint(&self) -> bool {
+        self.inside == 0 && self.partial == 0
+    }
 }
 
 impl Footprint {
@@ -167,8 +191,8 @@ impl Footprint {
 
     /// The integer rows j whose translate of [y0, y1] meets the footprint's y-range.
     fn rows_for(&self, y0: f64, y1: f64) -> std::ops::RangeInclusive<i64> {
-        let first = (self.min.y - y1).ceil() as i64;
-        let last = (self.max.y - y0).floor() as i64;
+        let first = ceil_to_i64(self.min.y - y1);
+        let last = floor_to_i64(self.max.y - y0);
         first..=last
     }
 
@@ -176,9 +200,9 @@ impl Footprint {
     #[must_use]
     pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {
         let max = min + DVec2::splat(size);
-        let columns = (self.max.x - min.x).floor() - (self.min.x - max.x).ceil() + 1.0;
-        let rows = (self.max.y - min.y).floor() - (self.min.y - max.y).ceil() + 1.0;
-        if columns * rows <= 4.0 {
+        let columns = floor_to_i64(self.max.x - min.x) - ceil_to_i64(self.min.x - max.x) + 1;
+        let rows = floor_to_i64(self.max.y - min.y) - ceil_to_i64(self.min.y - max.y) + 1;
+        if columns as f64 * rows as f64 <= 4.0 {
             return self.overlap_box_by_translates(min, size);
         }
         let (mut inside, mut touching) = (0u64, 0u64);
@@ -206,12 +230,12 @@ impl Footprint {
         let spread_lo = edge_x.min(DVec2::ZERO) + edge_y.min(DVec2::ZERO);
         let spread_hi = edge_x.max(DVec2::ZERO) + edge_y.max(DVec2::ZERO);
         let (i0, i1) = (
-            (self.min.x - max.x).ceil() as i64,
-            (self.max.x - min.x).floor() as i64,
+            ceil_to_i64(self.min.x - max.x),
+            floor_to_i64(self.max.x - min.x),
         );
         let (j0, j1) = (
-            (self.min.y - max.y).ceil() as i64,
-            (self.max.y - min.y).floor() as i64,
+            ceil_to_i64(self.min.y - max.y),
+            floor_to_i64(self.max.y - min.y),
         );
         let mut overlap = BoxOverlap {
             inside: 0,
@@ -238,13 +262,13 @@ impl Footprint {
     fn row_translates(&self, min: DVec2, max: DVec2, j: i64) -> Option<RowTranslates> {
         let (y0, y1) = (min.y + j as f64, max.y + j as f64);
         let (band_lo, band_hi) = self.band(y0, y1)?;
-        let touching = (band_lo - max.x).ceil() as i64..=(band_hi - min.x).floor() as i64;
+        let touching = ceil_to_i64(band_lo - max.x)..=floor_to_i64(band_hi - min.x);
         if touching.is_empty() {
             return None;
         }
         let inside = match (self.row(y0), self.row(y1)) {
             (Some((a0, b0)), Some((a1, b1))) => {
-                (a0.max(a1) - min.x).ceil() as i64..=(b0.min(b1) - max.x).floor() as i64
+                ceil_to_i64(a0.max(a1) - min.x)..=floor_to_i64(b0.min(b1) - max.x)
             }
             // No translate is inside when a box edge's row misses the footprint.
             #[allow(clippy::reversed_empty_ranges)]
@@ -259,8 +283,8 @@ impl Footprint {
         let mut count = 0u64;
         for j in self.rows_for(x.y, x.y) {
             if let Some((a, b)) = self.row(x.y + j as f64) {
-                let first = (a - x.x).ceil() as i64;
-                let last = (b - x.x).floor() as i64;
+                let first = ceil_to_i64(a - x.x);
+                let last = floor_to_i64(b - x.x);
                 if last >= first {
                     count += (last - first + 1) as u64;
                 }
@@ -335,6 +359,35 @@ impl Footprint {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn integer_floor_and_ceil_match_the_float_ones() {
+        let values = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.5,
+            -2.5,
+            1e-300,
+            -1e-300,
+            4503599627370495.5,
+            -4503599627370495.5,
+            9.3e18,
+            -9.3e18,
+            1e300,
+            -1e300,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for x in values {
+            assert_eq!(floor_to_i64(x), x.floor() as i64, "floor {x}");
+            assert_eq!(ceil_to_i64(x), x.ceil() as i64, "ceil {x}");
+        }
+    }
 
     fn brute_multiplicity(f: &Footprint, x: DVec2) -> u64 {
         let mut count = 0;

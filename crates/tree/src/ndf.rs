@@ -206,11 +206,17 @@ impl NdfQuadrature {
             || (cell.depth <= self.tolerance.max_depth && self.table.contains_key(&cell.label))
     }
 
-    /// ∫ p over `cell`: the table entry if there is one, else the one-point rule Ω·p(centre).
+    /// ∫ p over `cell`: the table entry if there is one, else the one-point rule Ω·p(centre)
+    /// (the solid angle is computed only then).
     #[inline]
     #[must_use]
     pub fn integral(&self, cell: &DirectionalCell, density: &NormalDensity) -> f64 {
-        self.integral_with_solid_angle(cell, cell.solid_angle(), density)
+        match &cell.triangle {
+            None => self.hemisphere_integral,
+            Some(triangle) => self
+                .table_entry(cell)
+                .unwrap_or_else(|| one_point_rule(triangle, triangle.solid_angle(), density)),
+        }
     }
 
     /// [`NdfQuadrature::integral`] for a cell whose solid angle the caller already has.
@@ -224,19 +230,17 @@ impl NdfQuadrature {
     ) -> f64 {
         match &cell.triangle {
             None => self.hemisphere_integral,
-            Some(triangle) => {
-                if cell.depth <= self.tolerance.max_depth
-                    && let Some(&value) = self.table.get(&cell.label)
-                {
-                    return value;
-                }
-                let centre = triangle.centroid();
-                if centre.z > 0.0 {
-                    solid_angle * density(centre)
-                } else {
-                    0.0
-                }
-            }
+            Some(triangle) => self
+                .table_entry(cell)
+                .unwrap_or_else(|| one_point_rule(triangle, solid_angle, density)),
+        }
+    }
+
+    fn table_entry(&self, cell: &DirectionalCell) -> Option<f64> {
+        if cell.depth <= self.tolerance.max_depth {
+            self.table.get(&cell.label).copied()
+        } else {
+            None
         }
     }
 
@@ -253,13 +257,19 @@ impl NdfQuadrature {
         let integrals: [f64; 4] = std::array::from_fn(|j| {
             self.integral_with_solid_angle(&children[j], solid_angles[j], density)
         });
-        let total: f64 = integrals.iter().sum();
-        if total > 0.0 && total.is_finite() {
-            integrals.map(|i| i / total)
-        } else {
-            let sum: f64 = solid_angles.iter().sum();
-            solid_angles.map(|o| o / sum)
-        }
+        normalized(integrals).unwrap_or_else(|| by_solid_angle(*solid_angles))
+    }
+
+    /// [`NdfQuadrature::split_probabilities`] computing the children's solid angles only where
+    /// they are needed (cells without a table entry, or p vanishing on all four).
+    #[must_use]
+    pub fn split_probabilities_of(
+        &self,
+        children: &[DirectionalCell; 4],
+        density: &NormalDensity,
+    ) -> [f64; 4] {
+        let integrals: [f64; 4] = std::array::from_fn(|j| self.integral(&children[j], density));
+        normalized(integrals).unwrap_or_else(|| by_solid_angle(children.map(|c| c.solid_angle())))
     }
 
     /// The number of table entries (the paper reports 500–1000 for its scenes).
@@ -291,4 +301,26 @@ impl NdfQuadrature {
     pub fn tolerance(&self) -> QuadratureTolerance {
         self.tolerance
     }
+}
+/// Ω·p(centre), the one-point rule (p = 0 below the horizon).
+#[inline]
+fn one_point_rule(triangle: &SphericalTriangle, solid_angle: f64, density: &NormalDensity) -> f64 {
+    let centre = triangle.centroid();
+    if centre.z > 0.0 {
+        solid_angle * density(centre)
+    } else {
+        0.0
+    }
+}
+
+/// Integrals divided by their sum, or `None` when the sum is zero or not finite.
+fn normalized(integrals: [f64; 4]) -> Option<[f64; 4]> {
+    let total: f64 = integrals.iter().sum();
+    (total > 0.0 && total.is_finite()).then(|| integrals.map(|i| i / total))
+}
+
+/// Probabilities proportional to solid angle.
+fn by_solid_angle(solid_angles: [f64; 4]) -> [f64; 4] {
+    let sum: f64 = solid_angles.iter().sum();
+    solid_angles.map(|o| o / sum)
 }

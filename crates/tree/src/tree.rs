@@ -34,7 +34,7 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use glam::{DVec2, DVec3};
+use glam::DVec2;
 use glint_sphere::{Classification, OverlapMethod, SphericalConic, overlap_solid_angle};
 
 use crate::error::TreeError;
@@ -190,10 +190,17 @@ struct Node {
     depth: u32,
     /// The node's share of each channel's total particle area (1 at the root).
     areas: [f64; 3],
-    /// The query's answer for the dimension the parent's split left unchanged: children of a
-    /// spatial split share the parent's triangle, children of a directional split its box.
-    known_spatial: Option<BoxOverlap>,
-    known_directional: Option<Classification>,
+}
+
+/// A node waiting in a query's queue, with the query's answers for it: how its box meets the
+/// footprint and how its cell meets the conic. Both are computed when the node is created
+/// (children of a spatial split share the parent's directional answer, children of a
+/// directional split its spatial one), so nodes disjoint from the query never enter the queue.
+#[derive(Clone, Copy, Debug)]
+struct QueuedNode {
+    node: Node,
+    spatial: BoxOverlap,
+    directional: Classification,
 }
 
 impl Node {
@@ -208,7 +215,7 @@ impl Node {
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate.
 #[derive(Debug, Default)]
 pub struct QueryScratch {
-    queue: VecDeque<Node>,
+    queue: VecDeque<QueuedNode>,
     cells: Vec<DirectionalCell>,
 }
 
@@ -383,41 +390,55 @@ impl CountTree {
                 solid_angle: solid_angles[j],
                 depth: node.depth + 1,
                 areas: areas[j],
-                known_spatial: None,
-                known_directional: None,
             });
         }
         spatial
     }
 
-    /// Queues the non-empty children of `node` (from the top-level cache when the node is in
-    /// it). Empty children hold nothing for any query, so they are never queued.
+    /// Tests the children of `parent` (from the top-level cache when it is in it) against the
+    /// query and queues those that meet it, with the answers; returns how many were tested.
+    /// Those are the nodes Alg. 1 visits: it would pop the disjoint ones and discard them.
+    /// Empty children hold nothing for any query, so they are neither tested nor counted.
     fn split_into(
         &self,
-        node: &Node,
-        spatial_answer: BoxOverlap,
-        directional_answer: Classification,
-        queue: &mut VecDeque<Node>,
-    ) {
-        let known = |mut child: Node, spatial: bool| {
-            child.known_spatial = (!spatial).then_some(spatial_answer);
-            child.known_directional = spatial.then_some(directional_answer);
-            child
+        parent: &QueuedNode,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        queue: &mut VecDeque<QueuedNode>,
+    ) -> u32 {
+        let mut tested = 0;
+        let mut answer = |child: &Node, spatial: bool| {
+            if child.count == 0 {
+                return;
+            }
+            let mut queued = QueuedNode {
+                node: *child,
+                ..*parent
+            };
+            if spatial {
+                queued.spatial = footprint.overlap_box(child.box_min, child.box_size());
+            } else {
+                queued.directional = child
+                    .cell
+                    .triangle
+                    .as_ref()
+                    .map_or(Classification::Partial, |t| conic.classify(t));
+            }
+            tested += 1;
+            if !(queued.spatial.is_disjoint() || queued.directional == Classification::Disjoint) {
+                queue.push_back(queued);
+            }
         };
-        if let Some((children, spatial)) = self.top_levels.get(node) {
-            for child in children.iter().filter(|c| c.count > 0) {
-                queue.push_back(known(*child, *spatial));
+        if let Some((children, spatial)) = self.top_levels.get(&parent.node) {
+            for child in children {
+                answer(child, *spatial);
             }
-            return;
+        } else {
+            // Not cached: the split type is known before the children are.
+            let spatial = self.splits_in_space(&parent.node);
+            self.emit_children(&parent.node, |child| answer(&child, spatial));
         }
-        // Not cached: the split type is known before the children are, so emit straight into
-        // the queue.
-        let spatial = self.splits_in_space(node);
-        self.emit_children(node, |child| {
-            if child.count > 0 {
-                queue.push_back(known(child, spatial));
-            }
-        });
+        tested
     }
 
     /// The root node.
@@ -431,8 +452,6 @@ impl CountTree {
             solid_angle: DirectionalCell::HEMISPHERE.solid_angle(),
             depth: 0,
             areas: [1.0; 3],
-            known_spatial: None,
-            known_directional: None,
         }
     }
 
@@ -453,15 +472,25 @@ impl CountTree {
         }
         let QueryScratch { queue, cells } = scratch;
         queue.clear();
-        queue.push_back(self.root());
+        let root = self.root();
+        let root = QueuedNode {
+            spatial: footprint.overlap_box(root.box_min, root.box_size()),
+            directional: Classification::Partial,
+            node: root,
+        };
+        visited += 1;
+        if !root.spatial.is_disjoint() {
+            queue.push_back(root);
+        }
         // Eq. 10 compares a node's spread with ε times the running count. A footprint of a
         // tile or more finds nothing fully inside for many levels (its wrapped edges cut every
         // coarse box), and a dense query may also run long on a zero count; there the expected
         // total N·A·∫p (what the count converges to) is the scale: from the start for
         // footprints of a tile or more, after SCALE_AFTER_NODES nodes for the others.
         let mut scale_floor = None;
-        while let Some(node) = queue.pop_front() {
-            visited += 1;
+        // Every node in the queue meets the query (disjoint children are dropped when created)
+        // and has been counted in `visited`.
+        while let Some(queued) = queue.pop_front() {
             if scale_floor.is_none()
                 && self.config.epsilon > 0.0
                 && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
@@ -469,25 +498,11 @@ impl CountTree {
                 scale_floor = // Eq. 10's scale: the material's overlap method suffices.
                 Some(self.expected_count_by(footprint, conic, self.config.overlap, cells));
             }
-            if node.count == 0 {
-                continue;
-            }
-            let box_size = node.box_size();
-            let spatial = node
-                .known_spatial
-                .unwrap_or_else(|| footprint.overlap_box(node.box_min, box_size));
-            if spatial.inside == 0 && spatial.partial == 0 {
-                continue;
-            }
-            let directional = node
-                .known_directional
-                .unwrap_or_else(|| match &node.cell.triangle {
-                    None => Classification::Partial,
-                    Some(t) => conic.classify(t),
-                });
-            if directional == Classification::Disjoint {
-                continue;
-            }
+            let QueuedNode {
+                node,
+                spatial,
+                directional,
+            } = queued;
             let directions_inside = directional == Classification::TriangleInsideConic;
             if spatial.partial == 0 && directions_inside {
                 let multiplicity = spatial.inside as f64;
@@ -517,8 +532,8 @@ impl CountTree {
                     continue;
                 }
             }
-            // Every queued node will be visited: split only if the total stays within budget.
-            let over_budget = visited as usize + queue.len() + 4 > self.config.node_budget as usize;
+            // Split only if the children's tests keep the visits within budget.
+            let over_budget = visited as usize + 4 > self.config.node_budget as usize;
             truncated |= over_budget;
             if over_budget
                 || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)
@@ -531,12 +546,12 @@ impl CountTree {
                 continue;
             }
             if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
-                let (found, areas) = self.count_leaf(&node, footprint, conic);
+                let (found, areas) = self.count_leaf(&node, directional, footprint, conic);
                 count += found;
                 accumulate(&mut area_sums, areas, 1.0);
                 continue;
             }
-            self.split_into(&node, spatial, directional, queue);
+            visited += self.split_into(&queued, footprint, conic, queue);
         }
         self.result(count, area_sums, visited, truncated)
     }
@@ -614,10 +629,12 @@ impl CountTree {
         }
     }
 
-    /// Counts a leaf's particles one by one; returns (count, area sums).
+    /// Counts a leaf's particles one by one; returns (count, area sums). `directional` is the
+    /// conic's classification of the leaf's cell.
     fn count_leaf(
         &self,
         node: &Node,
+        directional: Classification,
         footprint: &Footprint,
         conic: &SphericalConic,
     ) -> (f64, [f64; 3]) {
@@ -648,8 +665,7 @@ impl CountTree {
             if multiplicity == 0 {
                 continue;
             }
-            let direction = self.sample_direction(&node.cell, &mut rng);
-            if !conic.contains(direction) {
+            if !self.particle_normal_in_conic(&node.cell, directional, conic, &mut rng) {
                 continue;
             }
             found += multiplicity as f64;
@@ -741,30 +757,48 @@ fn accumulate(sums: &mut [f64; 3], areas: [f64; 3], factor: f64) {
     }
 }
 
+/// The chord of an arc of 0.01 rad, 2·sin(0.005): leaf particles' normals descend the
+/// directional hierarchy until the cell's longest edge is below this arc.
+const LEAF_CELL_CHORD: f64 = 0.009_999_958_333_385_416;
+
 /// The directional law of the tree below a leaf, for one particle: descend the directional
 /// hierarchy with the split probabilities of [`NdfQuadrature::split_probabilities`] (the law
 /// of the multinomial splits, one particle at a time) until the cell has no table entry and
 /// its longest edge is below 0.01 rad, then sample the flat triangle uniformly and project
 /// (the projection's non-uniformity there is below 1e-4 relative).
 impl CountTree {
-    fn sample_direction(&self, cell: &DirectionalCell, rng: &mut TeaRng) -> DVec3 {
+    /// Whether the normal of one leaf particle (drawn from `rng` by the law above, starting in
+    /// `cell`, which the conic classifies as `classification`) lies in the conic. The descent
+    /// stops as soon as its cell is inside the conic or disjoint from it: the classification is
+    /// never wrong there, so the answer is that of the normal the full descent would reach.
+    fn particle_normal_in_conic(
+        &self,
+        cell: &DirectionalCell,
+        classification: Classification,
+        conic: &SphericalConic,
+        rng: &mut TeaRng,
+    ) -> bool {
         let mut cell = *cell;
+        let mut classification = classification;
         loop {
+            match classification {
+                Classification::Disjoint => return false,
+                Classification::TriangleInsideConic => return true,
+                Classification::ConicInsideTriangle | Classification::Partial => {}
+            }
             if let Some(triangle) = &cell.triangle
-                && triangle.longest_edge() <= 0.01
+                && triangle.longest_chord() <= LEAF_CELL_CHORD
                 && !self.quadrature.has_entry(&cell)
             {
                 let root = rng.uniform().sqrt();
                 let v = rng.uniform();
-                return triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
+                let normal = triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
+                return conic.contains(normal);
             }
             let children = cell.children();
-            let solid_angles = children.map(|c| c.solid_angle());
-            let probabilities = self.quadrature.split_probabilities(
-                &children,
-                &solid_angles,
-                self.density.as_ref(),
-            );
+            let probabilities = self
+                .quadrature
+                .split_probabilities_of(&children, self.density.as_ref());
             let mut u = rng.uniform();
             let mut chosen = 3;
             for (j, p) in probabilities.iter().enumerate() {
@@ -775,6 +809,10 @@ impl CountTree {
                 u -= p;
             }
             cell = children[chosen];
+            classification = cell
+                .triangle
+                .as_ref()
+                .map_or(Classification::Partial, |t| conic.classify(t));
         }
     }
 }
