@@ -1,0 +1,55 @@
+//! Times count-tree queries at the paper's Table 1 settings in a plain loop, for profilers:
+//! `cargo run --release -p glint-benches --example profile_queries [SETTING] [SECONDS]`
+//! (under `perf record -g` for a call graph). Prints ns per query and per visited node.
+
+use std::time::{Duration, Instant};
+
+use glint_benches::{TABLE1, table1_workload};
+use glint_tree::QueryScratch;
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let filter = args.next().unwrap_or_default();
+    let seconds: f64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1.0);
+    for setting in TABLE1.iter().filter(|s| s.name.contains(&filter)) {
+        let (tree, queries) = table1_workload(setting, 4096, 1);
+        // EPSILON=0 (say) overrides the setting's ε, e.g. to compare exact counts.
+        let env = |name: &str| std::env::var(name).ok().and_then(|e| e.parse::<f64>().ok());
+        let tree = match (env("EPSILON"), env("ANGLE_SCALE"), env("CACHED_LEVELS")) {
+            (None, None, None) => tree,
+            (epsilon, angle, levels) => glint_tree::CountTree::new(
+                glint_tree::CountTreeConfig {
+                    epsilon: epsilon.unwrap_or(tree.config().epsilon),
+                    cached_levels: levels.map_or(tree.config().cached_levels, |l| l as u32),
+                    expected_query_solid_angle: tree.config().expected_query_solid_angle
+                        * angle.unwrap_or(1.0),
+                    ..*tree.config()
+                },
+                glint_tests::counts::beckmann_density(setting.alpha, setting.alpha),
+            )
+            .expect("valid setting"),
+        };
+        let mut scratch = QueryScratch::new();
+        let mut checksum = 0.0;
+        for (footprint, conic) in &queries {
+            checksum += tree.query(footprint, conic, &mut scratch).count;
+        }
+        let (mut calls, mut nodes) = (0u64, 0u64);
+        let started = Instant::now();
+        while started.elapsed() < Duration::from_secs_f64(seconds) {
+            for (footprint, conic) in &queries {
+                nodes += u64::from(tree.query(footprint, conic, &mut scratch).nodes_visited);
+            }
+            calls += queries.len() as u64;
+        }
+        let ns = started.elapsed().as_nanos() as f64;
+        println!(
+            "{:28} {:8.1} nodes/query {:9.0} ns/query {:6.1} ns/node  Σcount {:.9}",
+            setting.name,
+            nodes as f64 / calls as f64,
+            ns / calls as f64,
+            ns / nodes as f64,
+            checksum
+        );
+    }
+}
