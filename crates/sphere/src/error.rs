@@ -53,6 +53,12 @@ pub(crate) fn unit_direction(
     if !v.is_finite() {
         return Err(SphereError::NonFiniteDirection { name });
     }
+    // The common case: the squared length is a normal number, so v·(1/|v|) neither under- nor
+    // overflows (two roundings per component, like `normalize`).
+    let length_squared = v.length_squared();
+    if length_squared > 1e-300 && length_squared < 1e300 {
+        return Ok(v * (1.0 / length_squared.sqrt()));
+    }
     // Scale first so that tiny and huge (finite) inputs normalize without under/overflow.
     let scale = v.abs().max_element();
     if scale == 0.0 {
