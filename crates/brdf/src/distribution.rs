@@ -127,20 +127,23 @@ impl Microfacet {
         if w.z <= 0.0 {
             return f64::INFINITY;
         }
-        let projected = ((self.alpha_x * w.x).powi(2) + (self.alpha_y * w.y).powi(2)).sqrt();
-        if projected == 0.0 {
+        // a = cos θ / (α(φ) sin θ) = w.z / √projected².
+        let projected_squared = (self.alpha_x * w.x).powi(2) + (self.alpha_y * w.y).powi(2);
+        if projected_squared == 0.0 {
             return 0.0;
         }
-        let a = w.z / projected;
         match self.kind {
             DistributionKind::Beckmann => {
-                // For a > 6, erf(a) = 1 and exp(−a²) < 3e-16: Λ is 0 to double precision.
-                if a > 6.0 {
+                // For a > 6, erf(a) = 1 and exp(−a²) < 3e-16: Λ is 0 to double precision
+                // (tested without the square root: a² > 36).
+                if w.z * w.z > 36.0 * projected_squared {
                     return 0.0;
                 }
+                let a = w.z / projected_squared.sqrt();
                 0.5 * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * a * std::f64::consts::PI.sqrt())
             }
-            DistributionKind::Ggx => 0.5 * ((1.0 + 1.0 / (a * a)).sqrt() - 1.0),
+            // 1/a² = projected²/w.z².
+            DistributionKind::Ggx => 0.5 * ((1.0 + projected_squared / (w.z * w.z)).sqrt() - 1.0),
         }
     }
 
