@@ -280,6 +280,28 @@ impl Footprint {
     /// The number of integer translates x + (i, j) inside the footprint: the multiplicity m(x).
     #[must_use]
     pub fn multiplicity(&self, x: DVec2) -> u64 {
+        // The translates whose bounding box holds x: with at most four (a footprint below a
+        // tile, the leaves' common case), test each; otherwise count row by row.
+        let (i0, i1) = (
+            ceil_to_i64(self.min.x - x.x),
+            floor_to_i64(self.max.x - x.x),
+        );
+        let (j0, j1) = (
+            ceil_to_i64(self.min.y - x.y),
+            floor_to_i64(self.max.y - x.y),
+        );
+        if i1 < i0 || j1 < j0 {
+            return 0;
+        }
+        if (i1 - i0 + 1) as f64 * (j1 - j0 + 1) as f64 <= 4.0 {
+            let mut count = 0;
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    count += u64::from(self.contains(x + DVec2::new(i as f64, j as f64)));
+                }
+            }
+            return count;
+        }
         let mut count = 0u64;
         for j in self.rows_for(x.y, x.y) {
             if let Some((a, b)) = self.row(x.y + j as f64) {

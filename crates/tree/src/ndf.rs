@@ -302,6 +302,100 @@ impl NdfQuadrature {
         self.tolerance
     }
 }
+/// One directional split: the four child cells, their solid angles and the split
+/// probabilities ([`NdfQuadrature::split_probabilities`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct DirectionalSplit {
+    pub(crate) children: [DirectionalCell; 4],
+    pub(crate) solid_angles: [f64; 4],
+    pub(crate) probabilities: [f64; 4],
+}
+
+impl DirectionalSplit {
+    pub(crate) fn of(
+        cell: &DirectionalCell,
+        quadrature: &NdfQuadrature,
+        density: &NormalDensity,
+    ) -> Self {
+        let children = cell.children();
+        let solid_angles = children.map(|c| c.solid_angle());
+        let probabilities = quadrature.split_probabilities(&children, &solid_angles, density);
+        Self {
+            children,
+            solid_angles,
+            probabilities,
+        }
+    }
+}
+
+/// The directional splits that recur in most queries, computed once per material: those of
+/// every cell above a depth (every spatial box shares the same directional hierarchy, and the
+/// coarse cells' solid angles take `atan2`), and below it those of the cells with a table
+/// entry (where a peaked p sends the queries and the leaf particles' normals, and a split
+/// costs four table look-ups). The coarse ones are indexed by depth, then by label within the
+/// depth (labels of depth d are the consecutive (2·4ᵈ + 1)/3, …).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct DirectionalSplits {
+    levels: u32,
+    coarse: Vec<DirectionalSplit>,
+    non_uniform: HashMap<u64, DirectionalSplit, BuildHasherDefault<LabelHasher>>,
+}
+
+impl DirectionalSplits {
+    /// The splits of the cells of depths 0 to `levels` − 1 and of the deeper cells with a
+    /// table entry (about 450 bytes each).
+    pub(crate) fn build(quadrature: &NdfQuadrature, density: &NormalDensity, levels: u32) -> Self {
+        let mut coarse = Vec::new();
+        let mut level = vec![DirectionalCell::HEMISPHERE];
+        for _ in 0..levels {
+            let mut next = Vec::with_capacity(4 * level.len());
+            for cell in &level {
+                let split = DirectionalSplit::of(cell, quadrature, density);
+                next.extend_from_slice(&split.children);
+                coarse.push(split);
+            }
+            level = next;
+        }
+        // A cell has a table entry only if its parent has one (Alg. 2 recurses from there).
+        let mut non_uniform = HashMap::default();
+        let mut pending = level;
+        while let Some(cell) = pending.pop() {
+            if !quadrature.has_entry(&cell) {
+                continue;
+            }
+            let split = DirectionalSplit::of(&cell, quadrature, density);
+            pending.extend_from_slice(&split.children);
+            non_uniform.insert(cell.label, split);
+        }
+        Self {
+            levels,
+            coarse,
+            non_uniform,
+        }
+    }
+
+    /// The split of `cell`, if it is in the table.
+    #[inline]
+    pub(crate) fn get(&self, cell: &DirectionalCell) -> Option<&DirectionalSplit> {
+        if cell.depth >= self.levels {
+            if cell.depth >= DirectionalCell::MAX_LABELLED_DEPTH || self.non_uniform.is_empty() {
+                return None;
+            }
+            return self.non_uniform.get(&cell.label);
+        }
+        let power = 1u64 << (2 * cell.depth);
+        let first_label = (2 * power + 1) / 3;
+        let before = (power - 1) / 3;
+        self.coarse
+            .get((before + cell.label - first_label) as usize)
+    }
+
+    /// The number of splits held.
+    pub(crate) fn len(&self) -> usize {
+        self.coarse.len() + self.non_uniform.len()
+    }
+}
+
 /// Ω·p(centre), the one-point rule (p = 0 below the horizon).
 #[inline]
 fn one_point_rule(triangle: &SphericalTriangle, solid_angle: f64, density: &NormalDensity) -> f64 {

@@ -60,6 +60,16 @@ pub fn encrypt_x4(mut v0: u32x4, mut v1: u32x4, key: [u32; 4], rounds: u32) -> (
     (v0, v1)
 }
 
+/// Draw `draw` of the four streams (`key`, `purposes[i]`), in one 4-lane call: lane i equals
+/// that draw of `TeaRng::new(key, purposes[i], rounds)`.
+#[inline]
+#[must_use]
+pub fn draws_x4(key: [u32; 4], purposes: [u32; 4], draw: u32, rounds: u32) -> [u64; 4] {
+    let (a, b) = encrypt_x4(u32x4::splat(draw), u32x4::new(purposes), key, rounds);
+    let (a, b) = (a.to_array(), b.to_array());
+    core::array::from_fn(|i| (u64::from(a[i]) << 32) | u64::from(b[i]))
+}
+
 /// Maps 53 random bits to a uniform number in [0, 1).
 #[inline]
 #[must_use]
@@ -94,6 +104,16 @@ impl TeaRng {
             rounds,
             buffer: [0; 4],
             buffered: 0,
+        }
+    }
+
+    /// The stream for `key` and `purpose` starting at draw `first_draw` (the draws before it
+    /// are skipped, not computed).
+    #[must_use]
+    pub fn starting_at(key: [u32; 4], purpose: u32, rounds: u32, first_draw: u32) -> Self {
+        Self {
+            counter: first_draw,
+            ..Self::new(key, purpose, rounds)
         }
     }
 
@@ -216,6 +236,22 @@ mod tests {
             assert_eq!(value.to_bits(), scalar.uniform().to_bits());
         }
         assert_eq!(scalar, vector);
+    }
+
+    #[test]
+    fn streams_across_lanes_and_late_starts_match_scalar_streams() {
+        let key = [11, 22, 33, 44];
+        let purposes = [16, 17, 18, 99];
+        for draw in 0..6 {
+            let lanes = draws_x4(key, purposes, draw, DEFAULT_ROUNDS);
+            for (lane, purpose) in purposes.into_iter().enumerate() {
+                let mut rng = TeaRng::new(key, purpose, DEFAULT_ROUNDS);
+                let expected = (0..=draw).map(|_| rng.next_bits()).last();
+                assert_eq!(Some(lanes[lane]), expected);
+                let mut late = TeaRng::starting_at(key, purpose, DEFAULT_ROUNDS, draw);
+                assert_eq!(Some(late.next_bits()), expected);
+            }
+        }
     }
 
     #[test]
