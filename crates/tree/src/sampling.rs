@@ -106,23 +106,33 @@ fn binomial_inversion(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
 fn binomial_btrd(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
     let nf = n as f64;
     let q = 1.0 - p;
-    let mode = ((nf + 1.0) * p).floor();
-    let r = p / q;
-    let nr = (nf + 1.0) * r;
     let npq = nf * p * q;
     let spq = npq.sqrt();
     let b = 1.15 + 2.53 * spq;
     let a = -0.0873 + 0.0248 * b + 0.01 * p;
     let c = nf * p + 0.5;
-    let alpha = (2.83 + 5.1 / b) * spq;
     let v_r = 0.92 - 4.2 / b;
     let u_r_v_r = 0.86 * v_r;
+    // Step 1: the region of immediate acceptance (the value is positive, so truncation is
+    // ⌊·⌋; `as` saturates anything else to 0, as ⌊·⌋ as u64 would).
+    let immediate = |v: f64| {
+        let u = v / v_r - 0.43;
+        ((2.0 * a / (0.5 - u.abs()) + b) * u + c) as u64
+    };
+    // About 80% of draws end in step 1: the constants only the later steps use come after it.
+    let first = rng.uniform();
+    if first <= u_r_v_r {
+        return immediate(first);
+    }
+    let mode = ((nf + 1.0) * p).floor();
+    let r = p / q;
+    let nr = (nf + 1.0) * r;
+    let alpha = (2.83 + 5.1 / b) * spq;
+    let mut pending = Some(first);
     loop {
-        // Step 1: the region of immediate acceptance.
-        let mut v = rng.uniform();
+        let mut v = pending.take().unwrap_or_else(|| rng.uniform());
         if v <= u_r_v_r {
-            let u = v / v_r - 0.43;
-            return ((2.0 * a / (0.5 - u.abs()) + b) * u + c).floor() as u64;
+            return immediate(v);
         }
         // Step 2: generate u and v for the rejection test.
         let u = if v >= v_r {
