@@ -47,8 +47,13 @@ use crate::node::NodeId;
 use crate::sampling::{MultinomialMode, dirichlet4, exponential, multinomial4};
 use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, unit_f64};
 
-/// Nodes with at most this many particles place them explicitly (leaves).
-pub const LEAF_PARTICLES: u64 = 8;
+/// Nodes with at most this many particles place them explicitly (leaves). A leaf costs one
+/// visit and about 10 ns per particle (two 4-lane TEA calls per four positions, the normal only
+/// for particles in the footprint); splitting it instead costs a multinomial and four child
+/// tests per level. Measured on the six Table 1 workloads (`profile_queries`): 8, 16, 32 and 64
+/// visit 43–282, 42–239, 33–180 and 33–178 nodes per query, and 32 is the fastest on all six
+/// (5–15% faster than 8; 64 is slower again on three).
+pub const LEAF_PARTICLES: u64 = 32;
 
 /// At the depth guard, nodes with more particles than this add their expected share instead of
 /// being placed one by one (only degenerate queries get there).
