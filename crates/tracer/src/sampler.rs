@@ -14,6 +14,9 @@ pub struct PixelSampler {
     seed: u32,
     index: u32,
     dimension: u32,
+    /// Sobol dimensions 4·set … 4·set + 3 of this sample, computed together by
+    /// `sobol_burley::sample_4d` (identical to four `sample` calls, about 4× cheaper).
+    set: Option<(u32, [f32; 4])>,
 }
 
 /// A 32-bit integer hash (Wellons' lowbias32).
@@ -40,6 +43,7 @@ impl PixelSampler {
             seed: pixel_seed,
             index: index.min(MAX_SAMPLES_PER_PIXEL - 1),
             dimension: 0,
+            set: None,
         }
     }
 
@@ -51,7 +55,16 @@ impl PixelSampler {
         let jitter =
             f64::from(hash32(self.seed ^ hash32(d ^ hash32(self.index)))) / 4_294_967_296.0;
         if d < SOBOL_DIMENSIONS {
-            let stratum = f64::from(sobol_burley::sample(self.index, d, self.seed));
+            let set = d / 4;
+            let values = match self.set {
+                Some((cached, values)) if cached == set => values,
+                _ => {
+                    let values = sobol_burley::sample_4d(self.index, set, self.seed);
+                    self.set = Some((set, values));
+                    values
+                }
+            };
+            let stratum = f64::from(values[(d % 4) as usize]);
             (stratum + jitter * f64::from(f32::EPSILON) * 0.5).min(1.0 - f64::EPSILON)
         } else {
             jitter
@@ -67,6 +80,20 @@ impl PixelSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn four_dimensions_at_a_time_match_one_at_a_time() {
+        for index in [0, 1, 77, 4095] {
+            let mut sampler = PixelSampler::new(9, 3, 5, index);
+            for d in 0..SOBOL_DIMENSIONS + 3 {
+                let u = sampler.next_1d();
+                if d < SOBOL_DIMENSIONS {
+                    let stratum = f64::from(sobol_burley::sample(index, d, sampler.seed));
+                    assert!(u >= stratum && u < stratum + f64::from(f32::EPSILON), "{d}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn streams_are_uniform_and_repeatable() {
