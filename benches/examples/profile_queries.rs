@@ -12,7 +12,22 @@ fn main() {
     let filter = args.next().unwrap_or_default();
     let seconds: f64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1.0);
     for setting in TABLE1.iter().filter(|s| s.name.contains(&filter)) {
-        let (tree, queries) = table1_workload(setting, 4096, 1);
+        let (tree, mut queries) = table1_workload(setting, 4096, 1);
+        // UNIFORM=1: ω_i and ω_o uniform over the hemisphere (mostly far from the highlight).
+        if std::env::var("UNIFORM").is_ok() {
+            let mut rng = glint_tests::SplitMix64::new(5);
+            let mut direction = || {
+                let [a, b] = rng.uniforms::<2>();
+                let (z, phi) = (a.max(1e-3), 2.0 * std::f64::consts::PI * b);
+                let r = (1.0 - z * z).sqrt();
+                glam::DVec3::new(r * phi.cos(), r * phi.sin(), z)
+            };
+            for (_, conic) in &mut queries {
+                let gamma = setting.gamma_degrees.to_radians();
+                *conic = glint_sphere::SphericalConic::new(direction(), direction(), gamma)
+                    .expect("valid conic");
+            }
+        }
         // EPSILON=0 (say) overrides the setting's ε, e.g. to compare exact counts.
         let env = |name: &str| std::env::var(name).ok().and_then(|e| e.parse::<f64>().ok());
         let tree = match (env("EPSILON"), env("ANGLE_SCALE"), env("CACHED_LEVELS")) {
