@@ -28,12 +28,18 @@ fn main() {
                     .expect("valid conic");
             }
         }
-        // EPSILON=0 (say) overrides the setting's ε, e.g. to compare exact counts.
+        // EPSILON=0 (say) overrides the setting's ε, e.g. to compare exact counts; PARTICLES, N.
         let env = |name: &str| std::env::var(name).ok().and_then(|e| e.parse::<f64>().ok());
-        let tree = match (env("EPSILON"), env("ANGLE_SCALE"), env("CACHED_LEVELS")) {
-            (None, None, None) => tree,
-            (epsilon, angle, levels) => glint_tree::CountTree::new(
+        let tree = match (
+            env("EPSILON"),
+            env("ANGLE_SCALE"),
+            env("CACHED_LEVELS"),
+            env("PARTICLES"),
+        ) {
+            (None, None, None, None) => tree,
+            (epsilon, angle, levels, particles) => glint_tree::CountTree::new(
                 glint_tree::CountTreeConfig {
+                    particles: particles.map_or(tree.config().particles, |n| n as u64),
                     epsilon: epsilon.unwrap_or(tree.config().epsilon),
                     cached_levels: levels.map_or(tree.config().cached_levels, |l| l as u32),
                     expected_query_solid_angle: tree.config().expected_query_solid_angle
