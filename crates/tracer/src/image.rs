@@ -286,14 +286,21 @@ impl RgbImage {
     /// # Errors
     /// [`TracerError::Output`] when the file cannot be written.
     pub fn write_exr(&self, path: &Path) -> Result<(), TracerError> {
-        exr::prelude::write_rgb_file(path, self.width, self.height, |x, y| {
+        use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let p = self.pixels[y * self.width + x];
             (p.x as f32, p.y as f32, p.z as f32)
-        })
-        .map_err(|e| TracerError::Output {
-            path: path.to_path_buf(),
-            problem: e.to_string(),
-        })
+        });
+        // Sequential compression: parallel compression writes the chunks in the order they
+        // finish, so the same pixels would give different files from run to run.
+        Image::from_channels((self.width, self.height), channels)
+            .write()
+            .non_parallel()
+            .to_file(path)
+            .map_err(|e| TracerError::Output {
+                path: path.to_path_buf(),
+                problem: e.to_string(),
+            })
     }
 
     /// The 8-bit sRGB encoding of the image scaled by 2^`exposure` (clamped to [0, 1]).
@@ -360,6 +367,31 @@ mod tests {
             height,
             pixels,
         }
+    }
+
+    #[test]
+    fn exr_files_are_byte_identical_for_identical_pixels() {
+        // Enough scan-line chunks (16 lines each) that parallel compression would reorder them.
+        let (width, height) = (512, 512);
+        let pixels = (0..width * height)
+            .map(|i| DVec3::new((i * 7919 % 1000) as f64 / 999.0, (i % width) as f64, 0.5))
+            .collect();
+        let image = RgbImage {
+            width,
+            height,
+            pixels,
+        };
+        let dir = std::env::temp_dir().join(format!("glint-exr-bytes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let files: Vec<Vec<u8>> = (0..3)
+            .map(|k| {
+                let path = dir.join(format!("{k}.exr"));
+                image.write_exr(&path).unwrap();
+                std::fs::read(&path).unwrap()
+            })
+            .collect();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(files.iter().all(|f| *f == files[0]));
     }
 
     #[test]
