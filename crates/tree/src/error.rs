@@ -57,7 +57,10 @@ impl fmt::Display for TreeError {
                 "expected query area and solid angle must be finite and > 0"
             ),
             Self::InvalidTolerance => {
-                write!(f, "quadrature tolerances must be finite and >= 0")
+                write!(
+                    f,
+                    "quadrature tolerances must be finite and >= 0, and the maximum depth below 30"
+                )
             }
             Self::InvalidDensity => write!(
                 f,

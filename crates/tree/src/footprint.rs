@@ -200,9 +200,17 @@ impl Footprint {
     #[must_use]
     pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {
         let max = min + DVec2::splat(size);
-        let columns = floor_to_i64(self.max.x - min.x) - ceil_to_i64(self.min.x - max.x) + 1;
-        let rows = floor_to_i64(self.max.y - min.y) - ceil_to_i64(self.min.y - max.y) + 1;
-        if columns as f64 * rows as f64 <= 4.0 {
+        // Counted in f64: saturated bounds of absurd footprints must not overflow.
+        let span = |lo: i64, hi: i64| hi as f64 - lo as f64 + 1.0;
+        let columns = span(
+            ceil_to_i64(self.min.x - max.x),
+            floor_to_i64(self.max.x - min.x),
+        );
+        let rows = span(
+            ceil_to_i64(self.min.y - max.y),
+            floor_to_i64(self.max.y - min.y),
+        );
+        if columns * rows <= 4.0 {
             return self.overlap_box_by_translates(min, size);
         }
         let (mut inside, mut touching) = (0u64, 0u64);
@@ -293,7 +301,7 @@ impl Footprint {
         if i1 < i0 || j1 < j0 {
             return 0;
         }
-        if (i1 - i0 + 1) as f64 * (j1 - j0 + 1) as f64 <= 4.0 {
+        if (i1 as f64 - i0 as f64 + 1.0) * (j1 as f64 - j0 as f64 + 1.0) <= 4.0 {
             let mut count = 0;
             for j in j0..=j1 {
                 for i in i0..=i1 {

@@ -132,7 +132,8 @@ impl NdfQuadrature {
     /// Runs Alg. 2 on the four octants of the upper hemisphere.
     ///
     /// # Errors
-    /// [`TreeError::InvalidTolerance`] for negative or non-finite tolerances;
+    /// [`TreeError::InvalidTolerance`] for negative or non-finite tolerances, or a maximum
+    /// depth of 30 or more (labels are exact only above it);
     /// [`TreeError::InvalidDensity`] if the density is negative or not finite at a quadrature
     /// point, or integrates to zero.
     pub fn build(
@@ -140,7 +141,11 @@ impl NdfQuadrature {
         tolerance: QuadratureTolerance,
     ) -> Result<Self, TreeError> {
         let valid = |x: f64| x >= 0.0 && x.is_finite();
-        if !(valid(tolerance.absolute) && valid(tolerance.relative)) {
+        // Table keys are labels, exact only to MAX_LABELLED_DEPTH.
+        if !(valid(tolerance.absolute)
+            && valid(tolerance.relative)
+            && tolerance.max_depth < DirectionalCell::MAX_LABELLED_DEPTH)
+        {
             return Err(TreeError::InvalidTolerance);
         }
         let started = Instant::now();
@@ -360,7 +365,7 @@ impl DirectionalSplits {
         let mut non_uniform = HashMap::default();
         let mut pending = level;
         while let Some(cell) = pending.pop() {
-            if !quadrature.has_entry(&cell) {
+            if cell.depth >= DirectionalCell::MAX_LABELLED_DEPTH || !quadrature.has_entry(&cell) {
                 continue;
             }
             let split = DirectionalSplit::of(&cell, quadrature, density);
@@ -417,4 +422,62 @@ fn normalized(integrals: [f64; 4]) -> Option<[f64; 4]> {
 fn by_solid_angle(solid_angles: [f64; 4]) -> [f64; 4] {
     let sum: f64 = solid_angles.iter().sum();
     solid_angles.map(|o| o / sum)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn beckmann(alpha: f64) -> impl Fn(DVec3) -> f64 {
+        move |m: DVec3| {
+            let cos2 = m.z * m.z;
+            let tan2 = (1.0 - cos2) / cos2;
+            (-tan2 / (alpha * alpha)).exp() / (std::f64::consts::PI * alpha * alpha * cos2)
+        }
+    }
+
+    #[test]
+    fn cached_splits_are_the_splits_of_the_cells_asked_for() {
+        let density = beckmann(0.02);
+        let quadrature =
+            NdfQuadrature::build(&density, QuadratureTolerance::default()).expect("valid");
+        let splits = DirectionalSplits::build(&quadrature, &density, 4);
+        // Every cell above depth 4, and every deeper cell with an entry (and its children).
+        let mut level = vec![DirectionalCell::HEMISPHERE];
+        let mut deep_entries = 0;
+        for depth in 0.. {
+            if level.is_empty() {
+                break;
+            }
+            for cell in &level {
+                let cached = splits.get(cell);
+                if depth < 4 || quadrature.has_entry(cell) {
+                    let cached = cached.expect("cached");
+                    let computed = DirectionalSplit::of(cell, &quadrature, &density);
+                    assert_eq!(cached.children, computed.children, "depth {depth}");
+                    assert_eq!(cached.probabilities, computed.probabilities);
+                    deep_entries += usize::from(depth >= 4);
+                } else {
+                    assert!(cached.is_none(), "depth {depth}: a cell without an entry");
+                }
+            }
+            level = level.iter().flat_map(DirectionalCell::children).collect();
+            level.retain(|c| c.depth < 5 || quadrature.has_entry(c));
+        }
+        assert!(deep_entries > 10, "{deep_entries} deep cells with entries");
+        assert_eq!(splits.len(), (4usize.pow(4) - 1) / 3 + deep_entries);
+    }
+
+    #[test]
+    fn labels_past_their_exact_depth_are_refused() {
+        let density = beckmann(0.1);
+        let tolerance = QuadratureTolerance {
+            max_depth: DirectionalCell::MAX_LABELLED_DEPTH,
+            ..QuadratureTolerance::default()
+        };
+        assert!(matches!(
+            NdfQuadrature::build(&density, tolerance),
+            Err(TreeError::InvalidTolerance)
+        ));
+    }
 }

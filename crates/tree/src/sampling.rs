@@ -78,10 +78,10 @@ fn binomial_inversion(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
     let q = 1.0 - p;
     let ratio = p / q;
     let scaled = (n as f64 + 1.0) * ratio;
-    // f(0) = qⁿ: by repeated squaring for the small n of most splits (relative error below
+    // f(0) = qⁿ: by repeated squaring for the small n of most splits (relative error about
     // 1e-14, exact for the spatial splits' q = ½), through exp and ln_1p beyond.
     let f0 = if n <= 64 {
-        q.powi(n as i32)
+        power(q, n)
     } else {
         ((n as f64) * (-p).ln_1p()).exp()
     };
@@ -100,6 +100,20 @@ fn binomial_inversion(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
             f *= scaled / k as f64 - ratio;
         }
     }
+}
+
+/// xⁿ by square-and-multiply: IEEE products only, so the same value on every platform (unlike
+/// `powi`, whose precision Rust leaves unspecified).
+fn power(x: f64, mut n: u64) -> f64 {
+    let (mut result, mut square) = (1.0, x);
+    while n > 0 {
+        if n & 1 == 1 {
+            result *= square;
+        }
+        square *= square;
+        n >>= 1;
+    }
+    result
 }
 
 /// Hörmann's BTRD, for n·p ≥ 10 and p ≤ ½.
@@ -360,6 +374,17 @@ mod tests {
         let r = 1.0 / 10.0_f64;
         let series = (1.0 / 12.0 - (1.0 / 360.0 - 1.0 / 1260.0 * r * r) * r * r) * r;
         assert!((series - STIRLING_CORRECTION[9]).abs() < 1e-9);
+    }
+
+    #[test]
+    fn power_matches_powf() {
+        for x in [0.5_f64, 0.75, 2.0 / 3.0, 0.999_999, 1e-3] {
+            for n in 0..=64u64 {
+                let exact = x.powf(n as f64);
+                assert!((power(x, n) - exact).abs() <= 2e-14 * exact, "{x}^{n}");
+            }
+        }
+        assert_eq!(power(0.5, 40), 2f64.powi(-40));
     }
 
     #[test]

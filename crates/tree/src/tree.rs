@@ -59,7 +59,8 @@ pub const LEAF_PARTICLES: u64 = 32;
 /// being placed one by one (only degenerate queries get there).
 const MAX_EXPLICIT_PARTICLES: u64 = 256;
 
-/// Queries still running after this many nodes take the expected count as Eq. 10's scale.
+/// Queries that have visited (tested against the query) this many nodes take the expected
+/// count as Eq. 10's scale.
 const SCALE_AFTER_NODES: u32 = 512;
 
 /// Stream purposes: separate streams of one node.
