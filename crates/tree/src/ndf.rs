@@ -262,19 +262,13 @@ impl NdfQuadrature {
         let integrals: [f64; 4] = std::array::from_fn(|j| {
             self.integral_with_solid_angle(&children[j], solid_angles[j], density)
         });
-        normalized(integrals).unwrap_or_else(|| by_solid_angle(*solid_angles))
-    }
-
-    /// [`NdfQuadrature::split_probabilities`] computing the children's solid angles only where
-    /// they are needed (cells without a table entry, or p vanishing on all four).
-    #[must_use]
-    pub fn split_probabilities_of(
-        &self,
-        children: &[DirectionalCell; 4],
-        density: &NormalDensity,
-    ) -> [f64; 4] {
-        let integrals: [f64; 4] = std::array::from_fn(|j| self.integral(&children[j], density));
-        normalized(integrals).unwrap_or_else(|| by_solid_angle(children.map(|c| c.solid_angle())))
+        let total: f64 = integrals.iter().sum();
+        if total > 0.0 && total.is_finite() {
+            integrals.map(|i| i / total)
+        } else {
+            let sum: f64 = solid_angles.iter().sum();
+            solid_angles.map(|o| o / sum)
+        }
     }
 
     /// The number of table entries (the paper reports 500–1000 for its scenes).
@@ -410,18 +404,6 @@ fn one_point_rule(triangle: &SphericalTriangle, solid_angle: f64, density: &Norm
     } else {
         0.0
     }
-}
-
-/// Integrals divided by their sum, or `None` when the sum is zero or not finite.
-fn normalized(integrals: [f64; 4]) -> Option<[f64; 4]> {
-    let total: f64 = integrals.iter().sum();
-    (total > 0.0 && total.is_finite()).then(|| integrals.map(|i| i / total))
-}
-
-/// Probabilities proportional to solid angle.
-fn by_solid_angle(solid_angles: [f64; 4]) -> [f64; 4] {
-    let sum: f64 = solid_angles.iter().sum();
-    solid_angles.map(|o| o / sum)
 }
 
 #[cfg(test)]

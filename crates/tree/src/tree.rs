@@ -433,11 +433,7 @@ impl CountTree {
             if spatial {
                 queued.spatial = footprint.overlap_box(child.box_min, child.box_size());
             } else {
-                queued.directional = child
-                    .cell
-                    .triangle
-                    .as_ref()
-                    .map_or(Classification::Partial, |t| conic.classify(t));
+                queued.directional = classify_cell(&child.cell, conic);
             }
             tested += 1;
             if !(queued.spatial.is_disjoint() || queued.directional == Classification::Disjoint) {
@@ -507,7 +503,7 @@ impl CountTree {
         let root = self.root();
         let root = QueuedNode {
             spatial: footprint.overlap_box(root.box_min, root.box_size()),
-            directional: Classification::Partial,
+            directional: classify_cell(&root.cell, conic),
             node: root,
         };
         visited += 1;
@@ -841,22 +837,20 @@ impl CountTree {
                 return conic.contains(normal);
             }
             let u = rng.uniform();
-            cell = match self.directional_splits.get(&cell) {
-                Some(split) => split.children[choose(&split.probabilities, u)],
-                None => {
-                    let children = cell.children();
-                    let probabilities = self
-                        .quadrature
-                        .split_probabilities_of(&children, self.density.as_ref());
-                    children[choose(&probabilities, u)]
-                }
-            };
-            classification = cell
-                .triangle
-                .as_ref()
-                .map_or(Classification::Partial, |t| conic.classify(t));
+            cell = self.with_directional_split(&cell, |split| {
+                split.children[choose(&split.probabilities, u)]
+            });
+            classification = classify_cell(&cell, conic);
         }
     }
+}
+
+/// How `conic` meets `cell` (the whole hemisphere always partially).
+#[inline]
+fn classify_cell(cell: &DirectionalCell, conic: &SphericalConic) -> Classification {
+    cell.triangle
+        .as_ref()
+        .map_or(Classification::Partial, |t| conic.classify(t))
 }
 
 /// The child a uniform `u` picks under split probabilities summing to 1 (the last child takes
