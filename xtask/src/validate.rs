@@ -69,8 +69,62 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
         "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade, renders.\n",
         if quick { "quick" } else { "full" }
     )?;
-    // One step per check; indicatif hides the bar when the output is not a terminal.
-    let bar = indicatif::ProgressBar::new(14);
+    // Each check with the name the progress bar shows while it runs.
+    type Suite<'a> = Box<dyn FnOnce(&mut String) -> anyhow::Result<Check> + 'a>;
+    let suites: Vec<(&str, Suite)> = vec![
+        ("geometry: membership", Box::new(|r| membership(&sizes, r))),
+        (
+            "geometry: classification",
+            Box::new(|r| classification(&sizes, r)),
+        ),
+        (
+            "geometry: overlap",
+            Box::new(|r| overlap_against_monte_carlo(&sizes, r)),
+        ),
+        (
+            "geometry: planar error",
+            Box::new(|r| planar_error_by_size(&sizes, r)),
+        ),
+        (
+            "counts: binomial",
+            Box::new(|r| crate::validate_counts::binomial_moments(quick, r)),
+        ),
+        (
+            "counts: multinomial",
+            Box::new(|r| crate::validate_counts::multinomial_splits(quick, r)),
+        ),
+        (
+            "counts: additivity",
+            Box::new(|r| crate::validate_counts::additivity_and_determinism(quick, r)),
+        ),
+        (
+            "counts: coherence",
+            Box::new(|r| crate::validate_counts::coherence(quick, r)),
+        ),
+        (
+            "brdf: samplers",
+            Box::new(|r| crate::validate_brdf::samplers(quick, r)),
+        ),
+        ("brdf: energy", Box::new(crate::validate_brdf::energy)),
+        (
+            "brdf: convergence",
+            Box::new(|r| crate::validate_brdf::convergence(quick, out, r)),
+        ),
+        (
+            "stability",
+            Box::new(|r| crate::validate_stability::stability(quick, r)),
+        ),
+        (
+            "trade",
+            Box::new(|r| crate::validate_trade::trade(quick, out, r)),
+        ),
+        (
+            "renders",
+            Box::new(|r| crate::validate_render::renders(quick, r)),
+        ),
+    ];
+    // indicatif hides the bar when the output is not a terminal.
+    let bar = indicatif::ProgressBar::new(suites.len() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
             "{msg:32} [{bar:30}] {pos}/{len} checks, {elapsed}",
@@ -78,61 +132,12 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
         .expect("a valid template")
         .progress_chars("=> "),
     );
-    bar.set_message("geometry: membership");
     let mut checks = Vec::new();
-    let mut step = |name: &str, check: anyhow::Result<Check>| -> anyhow::Result<()> {
-        checks.push(check?);
-        bar.set_message(name.to_string());
+    for (name, suite) in suites {
+        bar.set_message(name);
+        checks.push(suite(&mut report)?);
         bar.inc(1);
-        Ok(())
-    };
-    step("geometry: classification", membership(&sizes, &mut report))?;
-    step("geometry: overlap", classification(&sizes, &mut report))?;
-    step(
-        "geometry: planar error",
-        overlap_against_monte_carlo(&sizes, &mut report),
-    )?;
-    step(
-        "counts: binomial",
-        planar_error_by_size(&sizes, &mut report),
-    )?;
-    step(
-        "counts: multinomial",
-        crate::validate_counts::binomial_moments(quick, &mut report),
-    )?;
-    step(
-        "counts: additivity",
-        crate::validate_counts::multinomial_splits(quick, &mut report),
-    )?;
-    step(
-        "counts: coherence",
-        crate::validate_counts::additivity_and_determinism(quick, &mut report),
-    )?;
-    step(
-        "brdf: samplers",
-        crate::validate_counts::coherence(quick, &mut report),
-    )?;
-    step(
-        "brdf: energy",
-        crate::validate_brdf::samplers(quick, &mut report),
-    )?;
-    step(
-        "brdf: convergence",
-        crate::validate_brdf::energy(&mut report),
-    )?;
-    step(
-        "stability",
-        crate::validate_brdf::convergence(quick, out, &mut report),
-    )?;
-    step(
-        "trade",
-        crate::validate_stability::stability(quick, &mut report),
-    )?;
-    step(
-        "renders",
-        crate::validate_trade::trade(quick, out, &mut report),
-    )?;
-    step("done", crate::validate_render::renders(quick, &mut report))?;
+    }
     bar.finish_and_clear();
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("report.md");
