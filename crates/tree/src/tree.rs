@@ -232,6 +232,7 @@ impl Node {
 pub struct QueryScratch {
     queue: VecDeque<QueuedNode>,
     cells: Vec<DirectionalCell>,
+    in_footprint: Vec<LeafParticle>,
 }
 
 impl QueryScratch {
@@ -498,7 +499,11 @@ impl CountTree {
         if footprint.is_degenerate() {
             return self.result(0.0, area_sums, visited, truncated);
         }
-        let QueryScratch { queue, cells } = scratch;
+        let QueryScratch {
+            queue,
+            cells,
+            in_footprint,
+        } = scratch;
         queue.clear();
         let root = self.root();
         let root = QueuedNode {
@@ -574,7 +579,8 @@ impl CountTree {
                 continue;
             }
             if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
-                let (found, areas) = self.count_leaf(&node, directional, footprint, conic);
+                let (found, areas) =
+                    self.count_leaf(&node, directional, footprint, conic, in_footprint);
                 count += found;
                 accumulate(&mut area_sums, areas, 1.0);
                 continue;
@@ -658,17 +664,16 @@ impl CountTree {
     }
 
     /// Counts a leaf's particles one by one; returns (count, area sums). `directional` is the
-    /// conic's classification of the leaf's cell.
+    /// conic's classification of the leaf's cell; `in_footprint` is reused working memory.
     fn count_leaf(
         &self,
         node: &Node,
         directional: Classification,
         footprint: &Footprint,
         conic: &SphericalConic,
+        in_footprint: &mut Vec<LeafParticle>,
     ) -> (f64, [f64; 3]) {
         let box_size = node.box_size();
-        let mut found = 0.0;
-        let mut areas = [0.0; 3];
         let channels = self.config.colour_channels;
         // Each particle's share of the node's area, per channel: Dirichlet(1, …, 1) as
         // normalized exponentials (all particles' draws are needed for the normalization).
@@ -687,6 +692,7 @@ impl CountTree {
         // Particle k's position is draws 0 and 1 of its stream: four particles' positions take
         // two 4-lane TEA calls. Its later draws (areas, then its normal) are drawn only if the
         // footprint holds it.
+        in_footprint.clear();
         let rounds = self.config.tea_rounds;
         for first in (0..node.count).step_by(4) {
             let purposes: [u32; 4] =
@@ -705,14 +711,26 @@ impl CountTree {
                 for share in shares.iter_mut().take(channels) {
                     *share = exponential(&mut rng);
                 }
-                if !self.particle_normal_in_conic(&node.cell, directional, conic, &mut rng) {
-                    continue;
-                }
-                found += multiplicity as f64;
+                in_footprint.push(LeafParticle {
+                    rng,
+                    multiplicity,
+                    shares,
+                });
+            }
+        }
+        // The normals of the particles in the footprint, 64 at a time (a bit each).
+        let mut found = 0.0;
+        let mut areas = [0.0; 3];
+        for group in in_footprint.chunks_mut(64) {
+            let everyone = u64::MAX >> (64 - group.len());
+            let inside = self.normals_in_conic(&node.cell, directional, conic, group, everyone);
+            for particle in members(inside).map(|k| &group[k]) {
+                let multiplicity = particle.multiplicity as f64;
+                found += multiplicity;
                 for c in 0..channels {
                     if exponential_sums[c] > 0.0 {
                         areas[c] +=
-                            multiplicity as f64 * node.areas[c] * shares[c] / exponential_sums[c];
+                            multiplicity * node.areas[c] * particle.shares[c] / exponential_sums[c];
                     }
                 }
             }
@@ -808,41 +826,78 @@ const LEAF_CELL_CHORD: f64 = 0.009_999_958_333_385_416;
 /// its longest edge is below 0.01 rad, then sample the flat triangle uniformly and project
 /// (the projection's non-uniformity there is below 1e-4 relative).
 impl CountTree {
-    /// Whether the normal of one leaf particle (drawn from `rng` by the law above, starting in
-    /// `cell`, which the conic classifies as `classification`) lies in the conic. The descent
-    /// stops as soon as its cell is inside the conic or disjoint from it: the classification is
-    /// never wrong there, so the answer is that of the normal the full descent would reach.
-    fn particle_normal_in_conic(
+    /// Which of the leaf particles `members` (bits indexing `particles`, each descending the
+    /// law above with its own stream, all now in `cell`, which the conic classifies as
+    /// `classification`) have normals in the conic; the answer has their bits set.
+    ///
+    /// The particles descend together: a cell's split and its children's classifications are
+    /// computed once for all the particles in it. Each particle still takes its own draws in
+    /// its own order, so the answer is that of descending them one at a time. A descent stops
+    /// as soon as its cell is inside the conic or disjoint from it: the classification is
+    /// never wrong there, so the answer is that of the normals the full descent would reach.
+    fn normals_in_conic(
         &self,
         cell: &DirectionalCell,
         classification: Classification,
         conic: &SphericalConic,
-        rng: &mut TeaRng,
-    ) -> bool {
-        let mut cell = *cell;
-        let mut classification = classification;
-        loop {
-            match classification {
-                Classification::Disjoint => return false,
-                Classification::TriangleInsideConic => return true,
-                Classification::ConicInsideTriangle | Classification::Partial => {}
-            }
-            if let Some(triangle) = &cell.triangle
-                && triangle.longest_chord() <= LEAF_CELL_CHORD
-                && !self.quadrature.has_entry(&cell)
-            {
+        particles: &mut [LeafParticle],
+        members: u64,
+    ) -> u64 {
+        match classification {
+            Classification::Disjoint => return 0,
+            Classification::TriangleInsideConic => return members,
+            Classification::ConicInsideTriangle | Classification::Partial => {}
+        }
+        if let Some(triangle) = &cell.triangle
+            && triangle.longest_chord() <= LEAF_CELL_CHORD
+            && !self.quadrature.has_entry(cell)
+        {
+            let mut inside = 0;
+            for k in self::members(members) {
+                let rng = &mut particles[k].rng;
                 let root = rng.uniform().sqrt();
                 let v = rng.uniform();
                 let normal = triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
-                return conic.contains(normal);
+                inside |= u64::from(conic.contains(normal)) << k;
             }
-            let u = rng.uniform();
-            cell = self.with_directional_split(&cell, |split| {
-                split.children[choose(&split.probabilities, u)]
-            });
-            classification = classify_cell(&cell, conic);
+            return inside;
         }
+        self.with_directional_split(cell, |split| {
+            let mut by_child = [0u64; 4];
+            for k in self::members(members) {
+                by_child[choose(&split.probabilities, particles[k].rng.uniform())] |= 1 << k;
+            }
+            let mut inside = 0;
+            for (child, group) in split.children.iter().zip(by_child) {
+                if group != 0 {
+                    let classification = classify_cell(child, conic);
+                    inside |= self.normals_in_conic(child, classification, conic, particles, group);
+                }
+            }
+            inside
+        })
     }
+}
+
+/// A leaf particle in the footprint, between its position and its normal: the stream its
+/// normal's draws come from, how many footprint translates hold it, and its exponential
+/// area draws per channel.
+#[derive(Clone, Debug)]
+struct LeafParticle {
+    rng: TeaRng,
+    multiplicity: u64,
+    shares: [f64; 3],
+}
+
+/// The indices of the set bits of `bits`, in increasing order.
+fn members(mut bits: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let k = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            k
+        })
+    })
 }
 
 /// How `conic` meets `cell` (the whole hemisphere always partially).
@@ -863,4 +918,114 @@ fn choose(probabilities: &[f64; 4], mut u: f64) -> usize {
         u -= p;
     }
     3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    use glam::DVec3;
+
+    /// The descent of one leaf particle at a time: the reference for the grouped descent.
+    fn normal_in_conic_alone(
+        tree: &CountTree,
+        cell: &DirectionalCell,
+        classification: Classification,
+        conic: &SphericalConic,
+        rng: &mut TeaRng,
+    ) -> bool {
+        let (mut cell, mut classification) = (*cell, classification);
+        loop {
+            match classification {
+                Classification::Disjoint => return false,
+                Classification::TriangleInsideConic => return true,
+                Classification::ConicInsideTriangle | Classification::Partial => {}
+            }
+            if let Some(triangle) = &cell.triangle
+                && triangle.longest_chord() <= LEAF_CELL_CHORD
+                && !tree.quadrature.has_entry(&cell)
+            {
+                let root = rng.uniform().sqrt();
+                let v = rng.uniform();
+                let normal = triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
+                return conic.contains(normal);
+            }
+            let u = rng.uniform();
+            cell = tree.with_directional_split(&cell, |split| {
+                split.children[choose(&split.probabilities, u)]
+            });
+            classification = classify_cell(&cell, conic);
+        }
+    }
+
+    #[test]
+    fn grouped_leaf_descent_is_the_descent_one_particle_at_a_time() {
+        let alpha: f64 = 0.02;
+        let density = Arc::new(move |m: DVec3| {
+            let cos2 = m.z * m.z;
+            let tan2 = (1.0 - cos2) / cos2;
+            (-tan2 / (alpha * alpha)).exp() / (std::f64::consts::PI * alpha * alpha * cos2 * m.z)
+        });
+        let tree = CountTree::new(CountTreeConfig::default(), density).expect("valid");
+        let centroid = |cell: &DirectionalCell| cell.triangle.map_or(DVec3::Z, |t| t.centroid());
+        let mut draws = TeaRng::new([1, 2, 3, 4], 0, 8);
+        let (mut partial_answers, mut found) = (0, 0);
+        for trial in 0..300 {
+            // A cell 0–9 levels deep, towards the normal for most trials (where the table is).
+            let mut cell = DirectionalCell::HEMISPHERE;
+            for _ in 0..trial % 10 {
+                let children = cell.children();
+                let toward_normal = children
+                    .iter()
+                    .max_by(|a, b| centroid(a).z.total_cmp(&centroid(b).z))
+                    .copied()
+                    .expect("four children");
+                cell = if draws.uniform() < 0.7 {
+                    toward_normal
+                } else {
+                    children[(draws.uniform() * 4.0) as usize % 4]
+                };
+            }
+            // A conic of half-vectors around a point near the cell's centroid.
+            let h = (centroid(&cell)
+                + 0.01 * DVec3::new(draws.uniform() - 0.5, draws.uniform() - 0.5, 0.0))
+            .normalize();
+            let wi = DVec3::new(0.3, -0.2, 1.0).normalize();
+            let wo = 2.0 * wi.dot(h) * h - wi;
+            let gamma = 0.002 + 0.1 * draws.uniform();
+            let Ok(conic) = SphericalConic::new(wi, wo, gamma) else {
+                continue;
+            };
+            let classification = classify_cell(&cell, &conic);
+            let count = 1 + (trial % 64);
+            let mut particles: Vec<LeafParticle> = (0..count)
+                .map(|k| LeafParticle {
+                    rng: TeaRng::starting_at([trial, 7, 8, 9], k, 8, k % 3),
+                    multiplicity: 1,
+                    shares: [0.0; 3],
+                })
+                .collect();
+            let mut alone: Vec<TeaRng> = particles.iter().map(|p| p.rng.clone()).collect();
+            let everyone = u64::MAX >> (64 - count);
+            let grouped =
+                tree.normals_in_conic(&cell, classification, &conic, &mut particles, everyone);
+            for (k, rng) in alone.iter_mut().enumerate() {
+                let expected = normal_in_conic_alone(&tree, &cell, classification, &conic, rng);
+                assert_eq!(
+                    grouped >> k & 1 == 1,
+                    expected,
+                    "trial {trial} particle {k}"
+                );
+                // Each particle took the same draws as alone.
+                assert_eq!(particles[k].rng.uniform(), rng.uniform(), "trial {trial}");
+            }
+            partial_answers += u32::from(grouped != 0 && grouped != everyone);
+            found += grouped.count_ones();
+        }
+        // The trials exercise descents that split their particles.
+        assert!(
+            partial_answers > 30 && found > 300,
+            "{partial_answers} {found}"
+        );
+    }
 }
