@@ -147,18 +147,36 @@ pub fn table1_workload(
     (tree, queries)
 }
 
-/// Mean tree nodes visited and particles found per query over a setting's workload.
+/// Mean tree nodes visited (and meeting the query) and particles found per query over a
+/// setting's workload.
 #[must_use]
-pub fn table1_statistics(setting: &Table1Setting, n: usize, seed: u64) -> (f64, f64) {
+pub fn table1_statistics(setting: &Table1Setting, n: usize, seed: u64) -> Table1Statistics {
     let (tree, queries) = table1_workload(setting, n, seed);
     let mut scratch = glint_tree::QueryScratch::new();
-    let (mut nodes, mut particles) = (0.0, 0.0);
+    let mut sums = Table1Statistics::default();
     for (footprint, conic) in &queries {
         let result = tree.query(footprint, conic, &mut scratch);
-        nodes += f64::from(result.nodes_visited);
-        particles += result.count;
+        sums.nodes_visited += f64::from(result.nodes_visited);
+        sums.nodes_overlapping += f64::from(result.nodes_overlapping);
+        sums.particles_found += result.count;
     }
-    (nodes / n as f64, particles / n as f64)
+    let n = n as f64;
+    Table1Statistics {
+        nodes_visited: sums.nodes_visited / n,
+        nodes_overlapping: sums.nodes_overlapping / n,
+        particles_found: sums.particles_found / n,
+    }
+}
+
+/// Means per query over a Table 1 workload.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Table1Statistics {
+    /// Nodes visited (tested against the query).
+    pub nodes_visited: f64,
+    /// Visited nodes that meet the query.
+    pub nodes_overlapping: f64,
+    /// Particles found.
+    pub particles_found: f64,
 }
 
 /// The glint material of a Table 1 setting and `n` (ω_i, ω_o, footprint) near the highlight.

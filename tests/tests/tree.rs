@@ -223,6 +223,11 @@ fn extreme_parameters_give_finite_bounded_answers() {
                         "{} nodes",
                         result.nodes_visited
                     );
+                    // The root meets every footprint; only nodes meeting the query are split,
+                    // each into at most four tested children.
+                    let (visited, overlapping) = (result.nodes_visited, result.nodes_overlapping);
+                    assert!(1 <= overlapping && overlapping <= visited);
+                    assert!(visited <= 1 + 4 * overlapping, "{visited} {overlapping}");
                 }
             }
         }

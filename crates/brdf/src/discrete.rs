@@ -117,8 +117,10 @@ pub struct GlintEvaluation {
     pub expected_count: f64,
     /// D̂ of Eq. 6 per channel.
     pub d_hat: DVec3,
-    /// Tree nodes visited.
+    /// Tree nodes visited (tested against the query).
     pub nodes_visited: u32,
+    /// The visited nodes that meet the query.
+    pub nodes_overlapping: u32,
 }
 
 /// f̂ for one footprint with the size of its tree query.
@@ -128,8 +130,10 @@ pub struct FootprintEvaluation {
     pub f_hat: DVec3,
     /// Particles found (possibly fractional).
     pub count: f64,
-    /// Tree nodes visited.
+    /// Tree nodes visited (tested against the query).
     pub nodes_visited: u32,
+    /// The visited nodes that meet the query.
+    pub nodes_overlapping: u32,
 }
 
 /// One tree query with the unit directions and conic it was made for.
@@ -252,6 +256,7 @@ impl DiscreteBrdf {
                 expected_count: 0.0,
                 d_hat: DVec3::ZERO,
                 nodes_visited: 0,
+                nodes_overlapping: 0,
             };
         };
         GlintEvaluation {
@@ -261,6 +266,7 @@ impl DiscreteBrdf {
             expected_count: self.tree.expected_count(footprint, &query.conic, scratch),
             d_hat: DVec3::from_array(query.result.d_hat),
             nodes_visited: query.result.nodes_visited,
+            nodes_overlapping: query.result.nodes_overlapping,
         }
     }
 
@@ -321,11 +327,13 @@ impl DiscreteBrdf {
                 f_hat: query.f_hat,
                 count: query.result.count,
                 nodes_visited: query.result.nodes_visited,
+                nodes_overlapping: query.result.nodes_overlapping,
             },
             None => FootprintEvaluation {
                 f_hat: DVec3::ZERO,
                 count: 0.0,
                 nodes_visited: 0,
+                nodes_overlapping: 0,
             },
         }
     }

@@ -266,8 +266,12 @@ pub struct QueryResult {
     /// D̂ of Eq. 6 per colour channel: count/N without particle areas, else the summed areas of
     /// the particles found (all three channels equal for gray materials).
     pub d_hat: [f64; 3],
-    /// Tree nodes visited.
+    /// Tree nodes visited: every non-empty node tested against the query, as Alg. 1 pops
+    /// and tests every child it pushed (disjoint ones included).
     pub nodes_visited: u32,
+    /// The visited nodes that meet the query (not disjoint from it): those Alg. 1 counts,
+    /// splits or estimates rather than discards.
+    pub nodes_overlapping: u32,
     /// Whether the node budget cut the traversal short (the count is then partly an
     /// expectation, even with ε = 0).
     pub truncated: bool,
@@ -495,9 +499,10 @@ impl CountTree {
         let mut count = 0.0;
         let mut area_sums = [0.0; 3];
         let mut visited = 0u32;
+        let mut overlapping = 0u32;
         let mut truncated = false;
         if footprint.is_degenerate() {
-            return self.result(0.0, area_sums, visited, truncated);
+            return self.result(0.0, area_sums, [visited, overlapping], truncated);
         }
         let QueryScratch {
             queue,
@@ -524,6 +529,7 @@ impl CountTree {
         // Every node in the queue meets the query (disjoint children are dropped when created)
         // and has been counted in `visited`.
         while let Some(queued) = queue.pop_front() {
+            overlapping += 1;
             if scale_floor.is_none()
                 && self.config.epsilon > 0.0
                 && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
@@ -587,14 +593,14 @@ impl CountTree {
             }
             visited += self.split_into(&queued, footprint, conic, queue);
         }
-        self.result(count, area_sums, visited, truncated)
+        self.result(count, area_sums, [visited, overlapping], truncated)
     }
 
     fn result(
         &self,
         count: f64,
         area_sums: [f64; 3],
-        nodes_visited: u32,
+        [nodes_visited, nodes_overlapping]: [u32; 2],
         truncated: bool,
     ) -> QueryResult {
         let d_hat = match self.config.colour_channels {
@@ -606,6 +612,7 @@ impl CountTree {
             count,
             d_hat,
             nodes_visited,
+            nodes_overlapping,
             truncated,
         }
     }
