@@ -109,8 +109,16 @@ pub(crate) fn statistics_json(
         "rays_per_second": s.rays_per_second(),
         "glint_queries": s.glint.queries,
         "nodes_per_query": s.nodes_per_query(),
+        "overlapping_nodes_per_query": s.glint.overlapping_nodes_per_query(),
         "particles_per_query": s.particles_per_query(),
         "queries_per_second": s.queries_per_second(),
+        "materials": s.glint_by_material.iter().map(|(name, c)| serde_json::json!({
+            "name": name,
+            "glint_queries": c.queries,
+            "nodes_per_query": c.nodes_per_query(),
+            "overlapping_nodes_per_query": c.overlapping_nodes_per_query(),
+            "particles_per_query": c.particles_per_query(),
+        })).collect::<Vec<_>>(),
     })
 }
 
@@ -214,6 +222,17 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")
             .with_context(|| format!("cannot write {}", json.display()))?;
         println!("frame {frame}: {s} → {}", png.display());
+        if s.glint_by_material.len() > 1 {
+            for (material, c) in &s.glint_by_material {
+                println!(
+                    "  {material}: {} queries, {:.1} nodes ({:.1} meeting the query) and {:.3} particles per query",
+                    c.queries,
+                    c.nodes_per_query(),
+                    c.overlapping_nodes_per_query(),
+                    c.particles_per_query()
+                );
+            }
+        }
     }
     Ok(())
 }

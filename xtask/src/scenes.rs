@@ -8,9 +8,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use glint_tracer::image::RgbImage;
-use glint_tracer::material::Material;
+use glint_tracer::material::{GlintCounters, Material};
 use glint_tracer::scene_file::load_scene;
-use glint_tracer::{GlintRandomness, RenderSettings, Scene, render};
+use glint_tracer::{GlintRandomness, RenderSettings, RenderStatistics, Scene, render};
 
 /// Command-line options of `scenes`.
 #[derive(Debug, clap::Args)]
@@ -45,6 +45,20 @@ fn glint_parameters(scene: &Scene) -> Vec<(u64, f64, f64, f64)> {
     let mut out = vec![];
     scene.materials.iter().for_each(|m| collect(m, &mut out));
     out
+}
+
+/// A mean over all glint queries, with its range over the materials when there are several.
+fn with_material_range(
+    mean: f64,
+    statistics: &RenderStatistics,
+    per_material: fn(&GlintCounters) -> f64,
+) -> String {
+    let materials = &statistics.glint_by_material;
+    if materials.len() < 2 {
+        return format!("{mean:.1}");
+    }
+    let values = materials.iter().map(|(_, counters)| per_material(counters));
+    format!("{mean:.1} ({})", range(values, |x| format!("{x:.1}")))
 }
 
 fn range(values: impl Iterator<Item = f64>, format: impl Fn(f64) -> String) -> String {
@@ -97,7 +111,7 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
         .collect();
     files.sort();
     let mut table = String::from(
-        "| scene | N | γ | α | resolution, spp | mean nodes visited | mean particles found | glint time | smooth time | glint / smooth |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | N | γ | α | resolution, spp | mean nodes visited (per material) | meeting the query (per material) | mean particles found | glint time | smooth time | glint / smooth |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for path in &files {
         let name = path
@@ -135,7 +149,7 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
         let parameters = glint_parameters(&glint);
         writeln!(
             table,
-            "| {name} | {} | {} | {} | {}×{}, {} | {:.1} | {:.3} | {:.1} s | {:.1} s | {:.1}× |",
+            "| {name} | {} | {} | {} | {}×{}, {} | {} | {} | {:.3} | {:.1} s | {:.1} s | {:.1}× |",
             range(parameters.iter().map(|p| p.0 as f64), |x| format!(
                 "{x:.0e}"
             )),
@@ -149,7 +163,12 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
             settings.width,
             settings.height,
             settings.samples_per_pixel,
-            g.nodes_per_query(),
+            with_material_range(g.nodes_per_query(), &g, GlintCounters::nodes_per_query),
+            with_material_range(
+                g.glint.overlapping_nodes_per_query(),
+                &g,
+                GlintCounters::overlapping_nodes_per_query
+            ),
             g.particles_per_query(),
             g.seconds,
             s.seconds,

@@ -17,10 +17,13 @@ use crate::scene::Scene;
 const TILE: u32 = 16;
 
 /// Counts and times of a render, as in the paper's Table 1.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct RenderStatistics {
-    /// Glint queries (tree traversals).
+    /// Glint queries (tree traversals), all materials.
     pub glint: GlintCounters,
+    /// Glint queries per material that made any: the material's name in the scene file and
+    /// its counters.
+    pub glint_by_material: Vec<(String, GlintCounters)>,
     /// Rays traced (camera, extension and shadow rays).
     pub rays: u64,
     /// Camera samples taken.
@@ -33,13 +36,13 @@ impl RenderStatistics {
     /// Mean tree nodes visited per glint query.
     #[must_use]
     pub fn nodes_per_query(&self) -> f64 {
-        self.glint.nodes_visited as f64 / self.glint.queries.max(1) as f64
+        self.glint.nodes_per_query()
     }
 
     /// Mean particles found per glint query.
     #[must_use]
     pub fn particles_per_query(&self) -> f64 {
-        self.glint.particles_found / self.glint.queries.max(1) as f64
+        self.glint.particles_per_query()
     }
 
     /// Glint queries per second of wall-clock time.
@@ -60,11 +63,12 @@ impl std::fmt::Display for RenderStatistics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes and {:.3} particles per query, {:.0} queries/s",
+            "{:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes ({:.1} meeting the query) and {:.3} particles per query, {:.0} queries/s",
             self.seconds,
             self.rays_per_second() * 1e-6,
             self.glint.queries,
             self.nodes_per_query(),
+            self.glint.overlapping_nodes_per_query(),
             self.particles_per_query(),
             self.queries_per_second()
         )
@@ -171,6 +175,7 @@ pub fn render(
         .collect();
     let mut image = RgbImage::filled(width as usize, height as usize, DVec3::ZERO);
     let mut statistics = RenderStatistics::default();
+    let mut by_material = vec![GlintCounters::default(); scene.materials.len()];
     for (tile, (pixels, state)) in tiles.iter().enumerate() {
         let tile = tile as u32;
         let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
@@ -179,8 +184,16 @@ pub fn render(
             let (x, y) = (x0 + i as u32 % tile_width, y0 + i as u32 / tile_width);
             image.pixels[(y * width + x) as usize] = *p;
         }
-        statistics.glint.add(&state.counters);
+        for (m, counters) in state.counters.iter().enumerate() {
+            by_material[m].add(counters);
+        }
         statistics.rays += state.rays;
+    }
+    for (name, counters) in scene.material_names.iter().zip(by_material) {
+        statistics.glint.add(&counters);
+        if counters.queries > 0 {
+            statistics.glint_by_material.push((name.clone(), counters));
+        }
     }
     statistics.samples =
         u64::from(width) * u64::from(height) * u64::from(settings.samples_per_pixel);
@@ -352,6 +365,85 @@ radiance = 2.0
         }
     }
 
+    /// Each glint material's queries are counted under its own name, and the materials'
+    /// counters add up to the totals.
+    #[test]
+    fn glint_statistics_are_kept_per_material() {
+        let s = scene(
+            r#"
+[render]
+resolution = [48, 24]
+spp = 2
+[camera]
+position = [0, 1, 3]
+look_at = [0, 0, 0]
+[materials.sparse]
+type = "glint"
+alpha = 0.1
+particles = 1e5
+gamma = 1
+[materials.dense]
+type = "glint"
+alpha = 0.1
+particles = 1e9
+gamma = 1
+[materials.plain]
+type = "diffuse"
+colour = 0.5
+[[shapes]]
+type = "rectangle"
+center = [-1, 0, 0]
+u = [2, 0, 0]
+v = [0, 0, -4]
+material = "sparse"
+[[shapes]]
+type = "rectangle"
+center = [1, 0, 0]
+u = [2, 0, 0]
+v = [0, 0, -4]
+material = "dense"
+[[shapes]]
+type = "sphere"
+center = [0, 0.3, -0.5]
+radius = 0.3
+material = "plain"
+[[lights]]
+type = "sphere"
+center = [0, 1, -2]
+radius = 0.1
+power = 20
+"#,
+        );
+        let statistics = render(&s, &s.settings, 0.0, &|_, _| {}).unwrap().statistics;
+        let names: Vec<&str> = statistics
+            .glint_by_material
+            .iter()
+            .map(|(name, _)| name.as_str())
+            .collect();
+        assert_eq!(names, ["sparse", "dense"]);
+        let mut sum = GlintCounters::default();
+        for (name, counters) in &statistics.glint_by_material {
+            assert!(counters.queries > 100, "{name}: {counters:?}");
+            // Every split tests at most four children, and splits only nodes meeting the query.
+            assert!(counters.nodes_overlapping >= counters.queries, "{name}");
+            assert!(
+                counters.nodes_overlapping <= counters.nodes_visited,
+                "{name}"
+            );
+            assert!(
+                counters.nodes_visited <= counters.queries + 4 * counters.nodes_overlapping,
+                "{name}"
+            );
+            sum.add(counters);
+        }
+        assert_eq!(sum, statistics.glint);
+        // 10⁴ times the particles take more levels to resolve.
+        let [(_, sparse), (_, dense)] = &statistics.glint_by_material[..] else {
+            unreachable!("two materials")
+        };
+        assert!(dense.nodes_per_query() > sparse.nodes_per_query() + 4.0);
+    }
+
     /// The image is bit-identical for one thread and for several, glints included.
     #[test]
     fn images_do_not_depend_on_the_thread_count() {
@@ -380,16 +472,24 @@ radius = 0.1
 power = 20
 "#;
         let s = scene(text);
-        let images: Vec<RgbImage> = [1, 2, 3]
+        let outputs: Vec<RenderOutput> = [1, 2, 3]
             .into_iter()
             .map(|threads| {
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .build()
                     .unwrap();
-                pool.install(|| render(&s, &s.settings, 0.0, &|_, _| {}).unwrap().image)
+                pool.install(|| render(&s, &s.settings, 0.0, &|_, _| {}).unwrap())
             })
             .collect();
+        // The query statistics too (the same queries, summed in tile order).
+        for output in &outputs[1..] {
+            assert_eq!(
+                output.statistics.glint_by_material,
+                outputs[0].statistics.glint_by_material
+            );
+        }
+        let images: Vec<RgbImage> = outputs.into_iter().map(|o| o.image).collect();
         for image in &images[1..] {
             assert!(
                 images[0]

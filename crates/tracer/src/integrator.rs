@@ -184,10 +184,19 @@ impl Frame {
 pub struct PathState {
     /// The tree's scratch space.
     pub scratch: QueryScratch,
-    /// Glint query counters.
-    pub counters: GlintCounters,
+    /// Glint query counters per material (indexed like [`Scene::materials`]; grown on first
+    /// use).
+    pub counters: Vec<GlintCounters>,
     /// Rays traced (camera, extension and shadow rays).
     pub rays: u64,
+}
+
+/// The counters of material `index`, growing `counters` to hold it.
+fn counters_of(counters: &mut Vec<GlintCounters>, index: usize) -> &mut GlintCounters {
+    if counters.len() <= index {
+        counters.resize(index + 1, GlintCounters::default());
+    }
+    &mut counters[index]
 }
 
 /// A ray origin on the side of the surface that `direction` leaves by.
@@ -350,7 +359,7 @@ pub fn radiance(
             uv: surface.uv,
             footprint,
             scratch: &mut state.scratch,
-            counters: &mut state.counters,
+            counters: counters_of(&mut state.counters, primitive.material as usize),
         };
         // Next-event estimation: one light, chosen uniformly.
         let u_pick = sampler.next_1d();

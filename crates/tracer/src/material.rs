@@ -110,8 +110,10 @@ pub enum Material {
 pub struct GlintCounters {
     /// Tree queries.
     pub queries: u64,
-    /// Tree nodes visited, summed over queries.
+    /// Tree nodes visited (tested against the query), summed over queries.
     pub nodes_visited: u64,
+    /// The visited nodes that meet the query, summed over queries.
+    pub nodes_overlapping: u64,
     /// Particles found, summed over queries.
     pub particles_found: f64,
 }
@@ -121,7 +123,26 @@ impl GlintCounters {
     pub fn add(&mut self, other: &Self) {
         self.queries += other.queries;
         self.nodes_visited += other.nodes_visited;
+        self.nodes_overlapping += other.nodes_overlapping;
         self.particles_found += other.particles_found;
+    }
+
+    /// Mean tree nodes visited per query.
+    #[must_use]
+    pub fn nodes_per_query(&self) -> f64 {
+        self.nodes_visited as f64 / self.queries.max(1) as f64
+    }
+
+    /// Mean nodes meeting the query per query.
+    #[must_use]
+    pub fn overlapping_nodes_per_query(&self) -> f64 {
+        self.nodes_overlapping as f64 / self.queries.max(1) as f64
+    }
+
+    /// Mean particles found per query.
+    #[must_use]
+    pub fn particles_per_query(&self) -> f64 {
+        self.particles_found / self.queries.max(1) as f64
     }
 }
 
@@ -135,7 +156,7 @@ pub struct ShadingContext<'a> {
     pub footprint: Option<(DVec2, DVec2)>,
     /// The tree's working memory.
     pub scratch: &'a mut QueryScratch,
-    /// Where glint queries are counted.
+    /// Where glint queries are counted (the counters of the material being shaded).
     pub counters: &'a mut GlintCounters,
 }
 
@@ -182,6 +203,7 @@ impl GlintMaterial {
         let result = self.brdf.eval_footprint(wi, wo, &footprint, ctx.scratch);
         ctx.counters.queries += 1;
         ctx.counters.nodes_visited += u64::from(result.nodes_visited);
+        ctx.counters.nodes_overlapping += u64::from(result.nodes_overlapping);
         ctx.counters.particles_found += result.count;
         result.f_hat
     }

@@ -17,6 +17,8 @@ pub struct Scene {
     pub accelerator: Accelerator,
     /// Materials, indexed by [`crate::accel::Primitive::material`].
     pub materials: Vec<Material>,
+    /// Each material's name in the scene file (parallel to `materials`).
+    pub material_names: Vec<String>,
     /// Lights, indexed by [`crate::accel::Primitive::light`].
     pub lights: Vec<Light>,
     /// The camera.

@@ -851,6 +851,7 @@ impl Builder<'_> {
         // its NDF quadrature).
         let mut material_index: BTreeMap<String, u32> = BTreeMap::new();
         let mut materials = Vec::new();
+        let mut material_names = Vec::new();
         let mut primitives = Vec::new();
         let mut meshes = Vec::new();
         let mut lights = Vec::new();
@@ -868,6 +869,7 @@ impl Builder<'_> {
                 }
                 let material = self.material(name, &file.materials, &mut Vec::new())?;
                 materials.push(material);
+                material_names.push(name.to_string());
                 let i = (materials.len() - 1) as u32;
                 material_index.insert(name.to_string(), i);
                 Ok(i)
@@ -1028,10 +1030,12 @@ impl Builder<'_> {
         if materials.is_empty() {
             // Emitter-only scenes still index material 0.
             materials.push(Material::Diffuse(Texture::Constant(DVec3::ZERO)));
+            material_names.push(String::from("(none)"));
         }
         Ok(Scene {
             accelerator: Accelerator::new(primitives, meshes),
             materials,
+            material_names,
             lights,
             camera,
             settings,
