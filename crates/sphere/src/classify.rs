@@ -173,13 +173,41 @@ fn axis_in_triangle(v: &[FrameVertex; 3], axis: usize) -> Option<bool> {
     inside.then_some(true)
 }
 
+/// Slack of [`SphericalConic::bounding_cap_misses`] on the scale of the cosines it compares
+/// (their rounding errors are ~1e-15).
+const CAP_MARGIN: f64 = 1e-10;
+
 impl SphericalConic {
+    /// Whether the triangle's bounding cap and the elliptic conic's (centred on ẑ) are apart,
+    /// so the two are disjoint: a quick answer for the commonest case (three of a split's four
+    /// children miss a small conic). The triangle's cap is centred on u = a + b + c with
+    /// radius r, |u|·cos r = min(u·a, u·b, u·c); spherical caps under a hemisphere are convex,
+    /// so it holds the triangle. The caps are apart when ∠(u, ẑ) > r + θ_max, that is
+    /// u·ẑ < |u|·cos(r + θ_max) = (|u| cos r)·cos θ_max − (|u| sin r)·sin θ_max (both radii are
+    /// below π/2, so the sum is below π, where cos decreases).
+    fn bounding_cap_misses(&self, triangle: &SphericalTriangle) -> bool {
+        let Some((axis, cos_max, sin_max)) = self.bounding_cap() else {
+            return false;
+        };
+        let [a, b, c] = triangle.vertices();
+        let u = a + b + c;
+        let u_cos_r = u.dot(a).min(u.dot(b)).min(u.dot(c));
+        if !(u_cos_r > 0.0) {
+            return false;
+        }
+        let u_sin_r = (u.length_squared() - u_cos_r * u_cos_r).max(0.0).sqrt();
+        u.dot(axis) < u_cos_r * cos_max - u_sin_r * sin_max - CAP_MARGIN
+    }
+
     /// Classifies `triangle` against this conic's valid set (see the module docs). The answers
     /// [`Classification::Disjoint`], [`Classification::TriangleInsideConic`] and
     /// [`Classification::ConicInsideTriangle`] are never wrong; any doubt gives
     /// [`Classification::Partial`]. No trigonometry, no allocation.
     #[must_use]
     pub fn classify(&self, triangle: &SphericalTriangle) -> Classification {
+        if self.bounding_cap_misses(triangle) {
+            return Classification::Disjoint;
+        }
         let [a, b, c] = triangle.vertices();
         let v = [
             FrameVertex::new(self, a),

@@ -113,6 +113,10 @@ pub struct SphericalConic {
     half_cos: f64,
     half_sin: f64,
     kind: ConicKind,
+    /// Elliptic conics: cos and sin of the angular radius of the cap around ẑ that holds the
+    /// valid set (its major half-axis; see [`SphericalConic::bounding_cap`]).
+    cap_cos: f64,
+    cap_sin: f64,
 }
 
 impl SphericalConic {
@@ -174,6 +178,12 @@ impl SphericalConic {
         } else {
             ConicKind::Hyperbolic
         };
+        // The elliptic set k1·x² + k2·y² < s·z² with k1 ≤ k2 lies within tan²θ < s/k1 of ẑ,
+        // so cos θ_max = √(k1/(k1 + s)) = √k1/a and sin θ_max = √s/a (k1 + s = a²).
+        let (cap_cos, cap_sin) = match kind {
+            ConicKind::Elliptic => (k1.sqrt() / a, sin_half / a),
+            ConicKind::Hyperbolic => (-1.0, 0.0),
+        };
         Ok(Self {
             wi,
             wo,
@@ -183,6 +193,8 @@ impl SphericalConic {
             half_cos: a,
             half_sin: 0.5 * difference_length,
             kind,
+            cap_cos,
+            cap_sin,
         })
     }
 
@@ -208,6 +220,14 @@ impl SphericalConic {
     #[must_use]
     pub fn kind(&self) -> ConicKind {
         self.kind
+    }
+
+    /// For an elliptic conic, the cap around ẑ that holds its valid set: (ẑ, cos θ_max,
+    /// sin θ_max), θ_max the angle of the major half-axis, atan √(1/λ1). `None` for a
+    /// hyperbolic conic.
+    #[must_use]
+    pub fn bounding_cap(&self) -> Option<(DVec3, f64, f64)> {
+        (self.kind == ConicKind::Elliptic).then_some((self.frame[2], self.cap_cos, self.cap_sin))
     }
 
     /// The standard frame (x̂, ŷ, ẑ) of Eq. 9.
@@ -440,5 +460,44 @@ mod tests {
                 "{v}"
             );
         }
+    }
+
+    /// The bounding cap holds every direction of the valid set, and its radius is attained
+    /// (the ends of the major half-axis, ±x̂ tilted by θ_max, lie on the conic's boundary).
+    #[test]
+    fn bounding_cap_is_the_tightest_cap_around_z() {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut elliptic = 0;
+        for _ in 0..400 {
+            let wi = dir(89.0 * uniform(), 360.0 * uniform());
+            let wo = dir(89.0 * uniform(), 360.0 * uniform());
+            let gamma = (0.01 + 40.0 * uniform() * uniform()).to_radians();
+            let conic = SphericalConic::new(wi, wo, gamma).expect("valid");
+            let Some((axis, cos_max, sin_max)) = conic.bounding_cap() else {
+                assert_eq!(conic.kind(), ConicKind::Hyperbolic);
+                continue;
+            };
+            elliptic += 1;
+            assert!((cos_max * cos_max + sin_max * sin_max - 1.0).abs() < 1e-12);
+            // Directions around the axis out to twice the cap's radius.
+            let [x, y, _] = conic.frame();
+            let radius = sin_max.atan2(cos_max);
+            for _ in 0..500 {
+                let (angle, phi) = (2.0 * radius * uniform(), std::f64::consts::TAU * uniform());
+                let m = angle.cos() * axis + angle.sin() * (phi.cos() * x + phi.sin() * y);
+                if conic.quadratic_form(m) < 0.0 && m.dot(axis) > 0.0 {
+                    assert!(m.dot(axis) >= cos_max - 1e-12, "{conic:?} {m}");
+                }
+            }
+            let tip = cos_max * axis + sin_max * x;
+            assert!(conic.quadratic_form(tip).abs() < 1e-12, "{conic:?}");
+        }
+        assert!(elliptic > 300, "{elliptic}");
     }
 }
