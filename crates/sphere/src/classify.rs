@@ -192,10 +192,20 @@ impl SphericalConic {
         let [a, b, c] = triangle.vertices();
         let u = a + b + c;
         let u_cos_r = u.dot(a).min(u.dot(b)).min(u.dot(c));
+        // Only caps of radius below π/2 are claimed: every u·v > 0.
         if !(u_cos_r > 0.0) {
             return false;
         }
-        let u_sin_r = (u.length_squared() - u_cos_r * u_cos_r).max(0.0).sqrt();
+        // |u|² sin² r = |u|² − (|u| cos r)² cancels for small cells. The computed |u|² and
+        // |u| cos r (the least computed u·v, whichever vertex it is) are within ~1e-15 of the
+        // truth, so the difference is within ~1e-14, and |u| sin r within 1e-14/(2|u| sin r):
+        // below 1e-11, a hundredth of the margin, when (|u| sin r)² > 1e-6 (r above ~3e-4).
+        // Smaller cells take the full test.
+        let u_sin_r_squared = u.length_squared() - u_cos_r * u_cos_r;
+        if !(u_sin_r_squared > 1e-6) {
+            return false;
+        }
+        let u_sin_r = u_sin_r_squared.sqrt();
         u.dot(axis) < u_cos_r * cos_max - u_sin_r * sin_max - CAP_MARGIN
     }
 
@@ -278,5 +288,61 @@ impl SphericalConic {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Tiny triangles whose farthest vertex (from their centre) lies just inside the conic at the
+    /// tip of its major axis, the others outside along the same great circle: the configuration
+    /// where the bounding-cap test is tightest. Never disjoint, down to cells of 1e-8 rad.
+    #[test]
+    fn tiny_triangles_reaching_into_the_conic_are_not_disjoint() {
+        let direction = |theta: f64, phi: f64| {
+            DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            )
+        };
+        let mut checked = 0;
+        for gamma_degrees in [0.5, 5.0, 20.0, 60.0] {
+            for (wi, wo) in [
+                (direction(0.3, 0.0), direction(0.5, 2.5)),
+                (direction(1.2, 1.0), direction(0.1, 4.0)),
+                (direction(0.7, 0.0), direction(0.7, 0.0)),
+            ] {
+                let conic =
+                    SphericalConic::new(wi, wo, f64::to_radians(gamma_degrees)).expect("valid");
+                let Some((axis, cos_max, sin_max)) = conic.bounding_cap() else {
+                    continue;
+                };
+                let [x, y, _] = conic.frame();
+                let tip = sin_max.atan2(cos_max);
+                for r in [1e-3, 1e-5, 1e-6, 1e-7, 1e-8] {
+                    for side in [1.0, -1.0] {
+                        let along = |angle: f64| angle.cos() * axis + side * angle.sin() * x;
+                        let inside = along(tip - 1e-3 * r);
+                        let outer = along(tip + 2.0 * r);
+                        let (b, c) = (outer + r * y, outer - r * y);
+                        let triangle = SphericalTriangle::new(inside, b, c).expect("valid");
+                        if !conic.contains(triangle.vertices()[0])
+                            && !triangle.vertices().iter().any(|&v| conic.contains(v))
+                        {
+                            continue;
+                        }
+                        checked += 1;
+                        assert_ne!(
+                            conic.classify(&triangle),
+                            Classification::Disjoint,
+                            "γ {gamma_degrees}° r {r}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(checked >= 80, "{checked}");
     }
 }
