@@ -21,8 +21,9 @@ const TILE: u32 = 16;
 pub struct RenderStatistics {
     /// Glint queries (tree traversals), all materials.
     pub glint: GlintCounters,
-    /// Glint queries per material that made any: the material's name in the scene file and
-    /// its counters.
+    /// Glint queries per scene material that made any: the material's name in the scene file
+    /// (or `material i` for a scene built without names) and its counters. The material is the
+    /// one a primitive uses, so the glint parts of a mix count under the mix's name.
     pub glint_by_material: Vec<(String, GlintCounters)>,
     /// Rays traced (camera, extension and shadow rays).
     pub rays: u64,
@@ -189,10 +190,15 @@ pub fn render(
         }
         statistics.rays += state.rays;
     }
-    for (name, counters) in scene.material_names.iter().zip(by_material) {
+    for (m, counters) in by_material.into_iter().enumerate() {
         statistics.glint.add(&counters);
         if counters.queries > 0 {
-            statistics.glint_by_material.push((name.clone(), counters));
+            let name = scene
+                .material_names
+                .get(m)
+                .cloned()
+                .unwrap_or_else(|| format!("material {m}"));
+            statistics.glint_by_material.push((name, counters));
         }
     }
     statistics.samples =

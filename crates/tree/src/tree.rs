@@ -269,8 +269,9 @@ pub struct QueryResult {
     /// Tree nodes visited: every non-empty node tested against the query, as Alg. 1 pops
     /// and tests every child it pushed (disjoint ones included).
     pub nodes_visited: u32,
-    /// The visited nodes that meet the query (not disjoint from it): those Alg. 1 counts,
-    /// splits or estimates rather than discards.
+    /// The visited nodes that meet the query (not proven disjoint from it: the conservative
+    /// "partial" answers count): those Alg. 1 counts, splits or estimates rather than
+    /// discards. At least 1 unless the footprint is degenerate (then both counts are 0).
     pub nodes_overlapping: u32,
     /// Whether the node budget cut the traversal short (the count is then partly an
     /// expectation, even with ε = 0).
