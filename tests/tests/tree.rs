@@ -103,6 +103,53 @@ fn exact_counts_are_additive() {
     }
 }
 
+/// A leaf at the depth guard holds up to 256 particles, whose normals are resolved 64 at a
+/// time: splitting the tile at a non-dyadic line x = 0.3 keeps counts and particle areas
+/// additive, so every particle of the crowded leaf is counted once, in the right part.
+#[test]
+fn crowded_leaves_count_every_particle_once() {
+    let mut scratch = QueryScratch::new();
+    for (particles, colour_channels) in [(250, 3), (130, 0), (64, 1)] {
+        let config = CountTreeConfig {
+            particles,
+            max_depth: 0,
+            colour_channels,
+            ..CountTreeConfig::default()
+        };
+        let tree = CountTree::new(config, glint_tests::counts::beckmann_density(0.3, 0.3)).unwrap();
+        for gamma_deg in [2.0, 30.0, 150.0] {
+            let conic = near_specular_conic(gamma_deg);
+            let tile = |x0: f64, x1: f64| {
+                Footprint::new(
+                    DVec2::new(0.5 * (x0 + x1), 0.5),
+                    DVec2::new(x1 - x0, 0.0),
+                    DVec2::new(0.0, 1.0),
+                )
+                .unwrap()
+            };
+            let whole = tree.query(&tile(0.0, 1.0), &conic, &mut scratch);
+            let left = tree.query(&tile(0.0, 0.3), &conic, &mut scratch);
+            let right = tree.query(&tile(0.3, 1.0), &conic, &mut scratch);
+            assert_eq!(
+                whole.count,
+                left.count + right.count,
+                "N {particles}, γ {gamma_deg}°"
+            );
+            for c in 0..3 {
+                let parts = left.d_hat[c] + right.d_hat[c];
+                assert!(
+                    (whole.d_hat[c] - parts).abs() < 1e-12,
+                    "{whole:?} {left:?} {right:?}"
+                );
+            }
+            // The widest conic holds nearly every normal.
+            if gamma_deg > 100.0 {
+                assert!(whole.count >= 0.9 * particles as f64, "{whole:?}");
+            }
+        }
+    }
+}
+
 /// ε = 0: over 3000 random footprints, the mean count matches N·area·∫p over the conic, with
 /// the integral from an independent Monte Carlo over reflected directions, and the
 /// variance/mean ratio is 1 − q (binomial), within 5 standard errors that include the one
