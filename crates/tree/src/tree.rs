@@ -31,7 +31,6 @@
 //! Footprints wrap around the texture: a particle is counted once per integer translate inside
 //! the footprint (see [`crate::footprint`]).
 
-use std::collections::VecDeque;
 use std::sync::Arc;
 
 use glam::DVec2;
@@ -230,7 +229,8 @@ impl Node {
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate.
 #[derive(Debug, Default)]
 pub struct QueryScratch {
-    queue: VecDeque<QueuedNode>,
+    queue: Vec<QueuedNode>,
+    next_queue: Vec<QueuedNode>,
     cells: Vec<DirectionalCell>,
     in_footprint: Vec<LeafParticle>,
 }
@@ -425,7 +425,7 @@ impl CountTree {
         parent: &QueuedNode,
         footprint: &Footprint,
         conic: &SphericalConic,
-        queue: &mut VecDeque<QueuedNode>,
+        queue: &mut Vec<QueuedNode>,
     ) -> u32 {
         let mut tested = 0;
         let mut answer = |child: &Node, spatial: bool| {
@@ -443,7 +443,7 @@ impl CountTree {
             }
             tested += 1;
             if !(queued.spatial.is_disjoint() || queued.directional == Classification::Disjoint) {
-                queue.push_back(queued);
+                queue.push(queued);
             }
         };
         if let Some((children, spatial)) = self.top_levels.get(&parent.node) {
@@ -507,10 +507,12 @@ impl CountTree {
         }
         let QueryScratch {
             queue,
+            next_queue,
             cells,
             in_footprint,
         } = scratch;
         queue.clear();
+        next_queue.clear();
         let root = self.root();
         let root = QueuedNode {
             spatial: footprint.overlap_box(root.box_min, root.box_size()),
@@ -519,7 +521,7 @@ impl CountTree {
         };
         visited += 1;
         if !root.spatial.is_disjoint() {
-            queue.push_back(root);
+            queue.push(root);
         }
         // Eq. 10 compares a node's spread with ε times the running count. A footprint of a
         // tile or more finds nothing fully inside for many levels (its wrapped edges cut every
@@ -529,70 +531,86 @@ impl CountTree {
         let mut scale_floor = None;
         // Every node in the queue meets the query (disjoint children are dropped when created)
         // and has been counted in `visited`.
-        while let Some(queued) = queue.pop_front() {
-            overlapping += 1;
-            if scale_floor.is_none()
-                && self.config.epsilon > 0.0
-                && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
-            {
-                scale_floor = // Eq. 10's scale: the material's overlap method suffices.
+        // Breadth first, a level at a time: the queue holds one level while its children
+        // gather in the next (the order of a FIFO queue, without copying nodes out of it).
+        while !queue.is_empty() {
+            for queued in queue.iter() {
+                overlapping += 1;
+                if scale_floor.is_none()
+                    && self.config.epsilon > 0.0
+                    && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
+                {
+                    scale_floor = // Eq. 10's scale: the material's overlap method suffices.
                 Some(self.expected_count_by(footprint, conic, self.config.overlap, cells));
-            }
-            let QueuedNode {
-                node,
-                spatial,
-                directional,
-            } = queued;
-            let directions_inside = directional == Classification::TriangleInsideConic;
-            if spatial.partial == 0 && directions_inside {
-                let multiplicity = spatial.inside as f64;
-                count += multiplicity * node.count as f64;
-                accumulate(&mut area_sums, node.areas, multiplicity);
-                continue;
-            }
-            let near_uniform = !self.quadrature.has_entry(&node.cell);
-            // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
-            // query: in space they are uniform; in direction the fraction is the overlap's share
-            // of the triangle where p is near-uniform (no table entry, the paper's condition),
-            // and elsewhere ∫p over the overlap by the table, divided by ∫p over the triangle.
-            let threshold = self.config.epsilon * count.max(scale_floor.unwrap_or(0.0));
-            // Off the paper's condition the directional fraction costs a descent of the table:
-            // only try when a bound on the spread (Popoviciu: a contribution in [0, hi] has
-            // variance ≤ hi²/4) already passes.
-            // The descent is only worth it once a query has proved long (the scale floor is
-            // active); before that the paper's condition decides, as in Alg. 1.
-            let cheap = near_uniform || directions_inside;
-            let descend = scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
-            if threshold > 0.0 && (cheap || descend) {
-                let share =
-                    self.overlap_share(&node, footprint, conic, spatial, directions_inside, cells);
-                if share.deviation(node.count) < threshold {
+                }
+                let (node, spatial, directional) =
+                    (&queued.node, queued.spatial, queued.directional);
+                let directions_inside = directional == Classification::TriangleInsideConic;
+                if spatial.partial == 0 && directions_inside {
+                    let multiplicity = spatial.inside as f64;
+                    count += multiplicity * node.count as f64;
+                    accumulate(&mut area_sums, node.areas, multiplicity);
+                    continue;
+                }
+                let near_uniform = !self.quadrature.has_entry(&node.cell);
+                // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
+                // query: in space they are uniform; in direction the fraction is the overlap's share
+                // of the triangle where p is near-uniform (no table entry, the paper's condition),
+                // and elsewhere ∫p over the overlap by the table, divided by ∫p over the triangle.
+                let threshold = self.config.epsilon * count.max(scale_floor.unwrap_or(0.0));
+                // Off the paper's condition the directional fraction costs a descent of the table:
+                // only try when a bound on the spread (Popoviciu: a contribution in [0, hi] has
+                // variance ≤ hi²/4) already passes.
+                // The descent is only worth it once a query has proved long (the scale floor is
+                // active); before that the paper's condition decides, as in Alg. 1.
+                let cheap = near_uniform || directions_inside;
+                let descend =
+                    scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
+                if threshold > 0.0 && (cheap || descend) {
+                    let share = self.overlap_share(
+                        node,
+                        footprint,
+                        conic,
+                        spatial,
+                        directions_inside,
+                        cells,
+                    );
+                    if share.deviation(node.count) < threshold {
+                        count += node.count as f64 * share.mean;
+                        accumulate(&mut area_sums, node.areas, share.mean);
+                        continue;
+                    }
+                }
+                // Split only if the children's tests keep the visits within budget.
+                let over_budget = visited as usize + 4 > self.config.node_budget as usize;
+                truncated |= over_budget;
+                if over_budget
+                    || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)
+                {
+                    // The work guard, or the depth guard on a crowded node: the expected share.
+                    let share = self.overlap_share(
+                        node,
+                        footprint,
+                        conic,
+                        spatial,
+                        directions_inside,
+                        cells,
+                    );
                     count += node.count as f64 * share.mean;
                     accumulate(&mut area_sums, node.areas, share.mean);
                     continue;
                 }
+                if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
+                    let (found, areas) =
+                        self.count_leaf(node, directional, footprint, conic, in_footprint);
+                    count += found;
+                    accumulate(&mut area_sums, areas, 1.0);
+                    continue;
+                }
+                visited += self.split_into(queued, footprint, conic, next_queue);
             }
-            // Split only if the children's tests keep the visits within budget.
-            let over_budget = visited as usize + 4 > self.config.node_budget as usize;
-            truncated |= over_budget;
-            if over_budget
-                || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)
-            {
-                // The work guard, or the depth guard on a crowded node: the expected share.
-                let share =
-                    self.overlap_share(&node, footprint, conic, spatial, directions_inside, cells);
-                count += node.count as f64 * share.mean;
-                accumulate(&mut area_sums, node.areas, share.mean);
-                continue;
-            }
-            if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
-                let (found, areas) =
-                    self.count_leaf(&node, directional, footprint, conic, in_footprint);
-                count += found;
-                accumulate(&mut area_sums, areas, 1.0);
-                continue;
-            }
-            visited += self.split_into(&queued, footprint, conic, queue);
+            std::mem::swap(queue, next_queue);
+            next_queue.clear();
         }
         self.result(count, area_sums, [visited, overlapping], truncated)
     }
