@@ -563,18 +563,14 @@ impl CountTree {
                 // variance ≤ hi²/4) already passes.
                 // The descent is only worth it once a query has proved long (the scale floor is
                 // active); before that the paper's condition decides, as in Alg. 1.
+                let mut expected_share = || {
+                    self.overlap_share(node, footprint, conic, spatial, directions_inside, cells)
+                };
                 let cheap = near_uniform || directions_inside;
                 let descend =
                     scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
                 if threshold > 0.0 && (cheap || descend) {
-                    let share = self.overlap_share(
-                        node,
-                        footprint,
-                        conic,
-                        spatial,
-                        directions_inside,
-                        cells,
-                    );
+                    let share = expected_share();
                     if share.deviation(node.count) < threshold {
                         count += node.count as f64 * share.mean;
                         accumulate(&mut area_sums, node.areas, share.mean);
@@ -588,14 +584,7 @@ impl CountTree {
                     || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)
                 {
                     // The work guard, or the depth guard on a crowded node: the expected share.
-                    let share = self.overlap_share(
-                        node,
-                        footprint,
-                        conic,
-                        spatial,
-                        directions_inside,
-                        cells,
-                    );
+                    let share = expected_share();
                     count += node.count as f64 * share.mean;
                     accumulate(&mut area_sums, node.areas, share.mean);
                     continue;
