@@ -200,18 +200,26 @@ impl Footprint {
     #[must_use]
     pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {
         let max = min + DVec2::splat(size);
-        // Counted in f64: saturated bounds of absurd footprints must not overflow.
-        let span = |lo: i64, hi: i64| hi as f64 - lo as f64 + 1.0;
-        let columns = span(
+        // The translates (i, j) whose bounding boxes meet the box.
+        let (i0, i1) = (
             ceil_to_i64(self.min.x - max.x),
             floor_to_i64(self.max.x - min.x),
         );
-        let rows = span(
+        let (j0, j1) = (
             ceil_to_i64(self.min.y - max.y),
             floor_to_i64(self.max.y - min.y),
         );
-        if columns * rows <= 4.0 {
-            return self.overlap_box_by_translates(min, size);
+        if i1 < i0 || j1 < j0 {
+            // The commonest answer in a query: a child box beside a small footprint.
+            return BoxOverlap {
+                inside: 0,
+                partial: 0,
+            };
+        }
+        // Counted in f64: saturated bounds of absurd footprints must not overflow.
+        let span = |lo: i64, hi: i64| hi as f64 - lo as f64 + 1.0;
+        if span(i0, i1) * span(j0, j1) <= 4.0 {
+            return self.overlap_box_by_translates(min, size, [i0, i1], [j0, j1]);
         }
         let (mut inside, mut touching) = (0u64, 0u64);
         for j in self.rows_for(min.y, max.y) {
@@ -227,24 +235,21 @@ impl Footprint {
         }
     }
 
-    /// [`Footprint::overlap_box`] for the common case of a few candidate translates: each is
-    /// classified by the separating-axis test in the footprint's (s, t) parameters (the box's
+    /// [`Footprint::overlap_box`] for the common case of a few candidate translates (columns
+    /// i0..=i1 and rows j0..=j1): each is classified by the separating-axis test in the footprint's (s, t) parameters (the box's
     /// extent along s and t from its corner and edge images) and along x and y.
-    fn overlap_box_by_translates(&self, min: DVec2, size: f64) -> BoxOverlap {
-        let max = min + DVec2::splat(size);
+    fn overlap_box_by_translates(
+        &self,
+        min: DVec2,
+        size: f64,
+        [i0, i1]: [i64; 2],
+        [j0, j1]: [i64; 2],
+    ) -> BoxOverlap {
         let m = &self.to_parameters;
         let edge_x = m.x_axis * size;
         let edge_y = m.y_axis * size;
         let spread_lo = edge_x.min(DVec2::ZERO) + edge_y.min(DVec2::ZERO);
         let spread_hi = edge_x.max(DVec2::ZERO) + edge_y.max(DVec2::ZERO);
-        let (i0, i1) = (
-            ceil_to_i64(self.min.x - max.x),
-            floor_to_i64(self.max.x - min.x),
-        );
-        let (j0, j1) = (
-            ceil_to_i64(self.min.y - max.y),
-            floor_to_i64(self.max.y - min.y),
-        );
         let mut overlap = BoxOverlap {
             inside: 0,
             partial: 0,
