@@ -39,6 +39,14 @@ struct RowTranslates {
     inside: std::ops::RangeInclusive<i64>,
 }
 
+/// The integer translates whose bounding boxes meet a box's: [`Footprint::candidate_translates`].
+enum Candidates {
+    None,
+    /// Columns [i0, i1] and rows [j0, j1], at most four translates.
+    Few([i64; 2], [i64; 2]),
+    Many,
+}
+
 /// ⌊x⌋ as an integer, saturating (NaN gives 0, like `x.floor() as i64`). `f64::floor` is a
 /// libm call on x86-64's baseline, and box overlaps take eight of these.
 #[inline]
@@ -200,26 +208,18 @@ impl Footprint {
     #[must_use]
     pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {
         let max = min + DVec2::splat(size);
-        // The translates (i, j) whose bounding boxes meet the box.
-        let (i0, i1) = (
-            ceil_to_i64(self.min.x - max.x),
-            floor_to_i64(self.max.x - min.x),
-        );
-        let (j0, j1) = (
-            ceil_to_i64(self.min.y - max.y),
-            floor_to_i64(self.max.y - min.y),
-        );
-        if i1 < i0 || j1 < j0 {
+        match self.candidate_translates(min, max) {
             // The commonest answer in a query: a child box beside a small footprint.
-            return BoxOverlap {
-                inside: 0,
-                partial: 0,
-            };
-        }
-        // Counted in f64: saturated bounds of absurd footprints must not overflow.
-        let span = |lo: i64, hi: i64| hi as f64 - lo as f64 + 1.0;
-        if span(i0, i1) * span(j0, j1) <= 4.0 {
-            return self.overlap_box_by_translates(min, size, [i0, i1], [j0, j1]);
+            Candidates::None => {
+                return BoxOverlap {
+                    inside: 0,
+                    partial: 0,
+                };
+            }
+            Candidates::Few(columns, rows) => {
+                return self.overlap_box_by_translates(min, size, columns, rows);
+            }
+            Candidates::Many => {}
         }
         let (mut inside, mut touching) = (0u64, 0u64);
         for j in self.rows_for(min.y, max.y) {
@@ -235,9 +235,33 @@ impl Footprint {
         }
     }
 
+    /// The integer translates (i, j) of [min, max] whose bounding boxes meet the footprint's:
+    /// none, at most four (a footprint below a tile, the common case), or more.
+    fn candidate_translates(&self, min: DVec2, max: DVec2) -> Candidates {
+        let columns = [
+            ceil_to_i64(self.min.x - max.x),
+            floor_to_i64(self.max.x - min.x),
+        ];
+        let rows = [
+            ceil_to_i64(self.min.y - max.y),
+            floor_to_i64(self.max.y - min.y),
+        ];
+        if columns[1] < columns[0] || rows[1] < rows[0] {
+            return Candidates::None;
+        }
+        // Counted in f64: saturated bounds of absurd footprints must not overflow.
+        let span = |[lo, hi]: [i64; 2]| hi as f64 - lo as f64 + 1.0;
+        if span(columns) * span(rows) <= 4.0 {
+            Candidates::Few(columns, rows)
+        } else {
+            Candidates::Many
+        }
+    }
+
     /// [`Footprint::overlap_box`] for the common case of a few candidate translates (columns
-    /// i0..=i1 and rows j0..=j1): each is classified by the separating-axis test in the footprint's (s, t) parameters (the box's
-    /// extent along s and t from its corner and edge images) and along x and y.
+    /// i0..=i1 and rows j0..=j1): each is classified by the separating-axis test in the
+    /// footprint's (s, t) parameters (the box's extent along s and t from its corner and edge
+    /// images) and along x and y.
     fn overlap_box_by_translates(
         &self,
         min: DVec2,
@@ -295,25 +319,18 @@ impl Footprint {
     pub fn multiplicity(&self, x: DVec2) -> u64 {
         // The translates whose bounding box holds x: with at most four (a footprint below a
         // tile, the leaves' common case), test each; otherwise count row by row.
-        let (i0, i1) = (
-            ceil_to_i64(self.min.x - x.x),
-            floor_to_i64(self.max.x - x.x),
-        );
-        let (j0, j1) = (
-            ceil_to_i64(self.min.y - x.y),
-            floor_to_i64(self.max.y - x.y),
-        );
-        if i1 < i0 || j1 < j0 {
-            return 0;
-        }
-        if (i1 as f64 - i0 as f64 + 1.0) * (j1 as f64 - j0 as f64 + 1.0) <= 4.0 {
-            let mut count = 0;
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    count += u64::from(self.contains(x + DVec2::new(i as f64, j as f64)));
+        match self.candidate_translates(x, x) {
+            Candidates::None => return 0,
+            Candidates::Few([i0, i1], [j0, j1]) => {
+                let mut count = 0;
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        count += u64::from(self.contains(x + DVec2::new(i as f64, j as f64)));
+                    }
                 }
+                return count;
             }
-            return count;
+            Candidates::Many => {}
         }
         let mut count = 0u64;
         for j in self.rows_for(x.y, x.y) {

@@ -540,8 +540,10 @@ impl CountTree {
                     && self.config.epsilon > 0.0
                     && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
                 {
-                    scale_floor = // Eq. 10's scale: the material's overlap method suffices.
-                Some(self.expected_count_by(footprint, conic, self.config.overlap, cells));
+                    // Eq. 10's scale: the material's overlap method suffices.
+                    let expected =
+                        self.expected_count_by(footprint, conic, self.config.overlap, cells);
+                    scale_floor = Some(expected);
                 }
                 let (node, spatial, directional) =
                     (&queued.node, queued.spatial, queued.directional);
@@ -554,15 +556,16 @@ impl CountTree {
                 }
                 let near_uniform = !self.quadrature.has_entry(&node.cell);
                 // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
-                // query: in space they are uniform; in direction the fraction is the overlap's share
-                // of the triangle where p is near-uniform (no table entry, the paper's condition),
-                // and elsewhere ∫p over the overlap by the table, divided by ∫p over the triangle.
+                // query: in space they are uniform; in direction the fraction is the overlap's
+                // share of the triangle where p is near-uniform (no table entry, the paper's
+                // condition), and elsewhere ∫p over the overlap by the table, divided by ∫p over
+                // the triangle.
                 let threshold = self.config.epsilon * count.max(scale_floor.unwrap_or(0.0));
-                // Off the paper's condition the directional fraction costs a descent of the table:
-                // only try when a bound on the spread (Popoviciu: a contribution in [0, hi] has
-                // variance ≤ hi²/4) already passes.
-                // The descent is only worth it once a query has proved long (the scale floor is
-                // active); before that the paper's condition decides, as in Alg. 1.
+                // Off the paper's condition the directional fraction costs a descent of the
+                // table: only try when a bound on the spread (Popoviciu: a contribution in
+                // [0, hi] has variance ≤ hi²/4) already passes. The descent is only worth it
+                // once a query has proved long (the scale floor is active); before that the
+                // paper's condition decides, as in Alg. 1.
                 let mut expected_share = || {
                     self.overlap_share(node, footprint, conic, spatial, directions_inside, cells)
                 };
@@ -678,7 +681,8 @@ impl CountTree {
         }
     }
 
-    /// Counts a leaf's particles one by one; returns (count, area sums). `directional` is the
+    /// Counts a leaf's particles (positions one by one, normals by [`Self::normals_in_conic`]);
+    /// returns (count, area sums). `directional` is the
     /// conic's classification of the leaf's cell; `in_footprint` is reused working memory.
     fn count_leaf(
         &self,
