@@ -11,7 +11,7 @@ use glint_tree::{CountTree, CountTreeConfig, Footprint, NormalDensity, QueryScra
 use statrs::distribution::{ChiSquared, ContinuousCDF, Discrete};
 
 use crate::SplitMix64;
-use crate::geometry::uniform_in_cone;
+use crate::geometry::{direction, uniform_in_cone};
 
 /// The anisotropic Beckmann particle normal density p(m) = D(m)·cos θ, written here from its
 /// definition (independently of glint-brdf, which glint-tree does not know):
@@ -362,4 +362,91 @@ mod tests {
             assert!((sum - 1.0).abs() < 2e-3, "∫p = {sum}");
         }
     }
+}
+
+/// What queries skipped as negligible would have found: the totals over the skipped ones of
+/// `queries` random queries (Beckmann α = 0.1, γ = 6°, footprints of side 10⁻³, ε = 0,
+/// `negligible_count` = ½), each skipped query traversed anyway. Near the highlight ω_o is
+/// the mirror direction about a normal from the model widened 2.5 times; elsewhere ω_o is
+/// uniform in direction. Queries not skipped near the highlight must equal the traversal
+/// (the answer says how many did not).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SkippedQueries {
+    /// Queries skipped.
+    pub skipped: usize,
+    /// Σλ̄ over them: the bound on the particles they hold, in expectation.
+    pub bound_sum: f64,
+    /// The particles the skipped queries held (found by traversing them).
+    pub found: f64,
+    /// Queries not skipped whose answer differed from the traversal's.
+    pub mismatched: usize,
+}
+
+impl SkippedQueries {
+    /// Whether `found` is within a one-sided Poisson bound of Σλ̄ (a count with mean at most
+    /// Σλ̄ exceeds Σλ̄ + 4√Σλ̄ + 4 with probability below about 1e-4).
+    #[must_use]
+    pub fn within_bound(&self) -> bool {
+        self.found <= self.bound_sum + 4.0 * self.bound_sum.sqrt() + 4.0
+    }
+}
+
+/// Runs the check of [`SkippedQueries`] for a material of `particles` particles.
+#[must_use]
+pub fn skipped_query_particles(
+    particles: f64,
+    near_highlight: bool,
+    queries: usize,
+    seed: u64,
+) -> SkippedQueries {
+    use glint_brdf::{DiscreteBrdf, DistributionKind, GlintParameters, Microfacet};
+    let d = Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).expect("valid roughness");
+    let mut parameters = GlintParameters::new(d);
+    parameters.particles = particles as u64;
+    parameters.gamma = 6f64.to_radians();
+    parameters.epsilon = 0.0;
+    let exact = DiscreteBrdf::new(parameters).expect("valid material");
+    parameters.negligible_count = 0.5;
+    let skipping = DiscreteBrdf::new(parameters).expect("valid material");
+    let mut scratch = QueryScratch::new();
+    let mut rng = SplitMix64::new(seed);
+    let mut out = SkippedQueries::default();
+    let random_direction = |theta_max: f64, rng: &mut SplitMix64| {
+        let theta = rng.uniform() * theta_max;
+        direction(theta, 2.0 * std::f64::consts::PI * rng.uniform())
+    };
+    for _ in 0..queries {
+        let wi = random_direction(1.2, &mut rng);
+        let wo = if near_highlight {
+            let m = d.scaled(2.5).sample_normal([rng.uniform(), rng.uniform()]);
+            2.0 * wi.dot(m) * m - wi
+        } else {
+            random_direction(1.5, &mut rng)
+        };
+        let footprint = Footprint::new(
+            DVec2::new(rng.uniform(), rng.uniform()),
+            DVec2::new(1e-3, 0.0),
+            DVec2::new(0.0, 1e-3),
+        )
+        .expect("finite footprint");
+        let lean = skipping.eval_footprint(wi, wo, &footprint, &mut scratch);
+        match lean.negligible {
+            Some(bound) => {
+                let skipped_answer_is_empty = lean.count == 0.0
+                    && lean.nodes_visited == 0
+                    && lean.f_hat == DVec3::ZERO
+                    && bound < 0.5;
+                out.mismatched += usize::from(!skipped_answer_is_empty);
+                out.skipped += 1;
+                out.bound_sum += bound;
+                out.found += exact.eval_footprint(wi, wo, &footprint, &mut scratch).count;
+            }
+            None if near_highlight => {
+                let full = exact.eval_footprint(wi, wo, &footprint, &mut scratch);
+                out.mismatched += usize::from(lean != full);
+            }
+            None => {}
+        }
+    }
+    out
 }

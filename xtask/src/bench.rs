@@ -199,6 +199,8 @@ pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result
 fn render_timings(quick: bool, table: &mut String) -> anyhow::Result<()> {
     let scene_path = crate::render::default_scene();
     let glint = glint_tracer::scene_file::load_scene(&scene_path)?;
+    let mut traversed = glint_tracer::scene_file::load_scene(&scene_path)?;
+    traversed.set_negligible_count(0.0)?;
     let mut smooth = glint_tracer::scene_file::load_scene(&scene_path)?;
     smooth.make_smooth();
     let mut settings = glint.settings;
@@ -214,7 +216,7 @@ fn render_timings(quick: bool, table: &mut String) -> anyhow::Result<()> {
     writeln!(
         table,
         "\n## Renders: the default scene ({}, {}x{}, {} spp)\n\n\
-         | threads | material | seconds | Mrays/s | glint queries | nodes per query | particles per query | queries/s | glint / smooth time |\n\
+         | threads | material | seconds | Mrays/s | glint queries | nodes per traversed query | particles per query | queries/s | glint / smooth time |\n\
          |---|---|---|---|---|---|---|---|---|",
         scene_path
             .file_name()
@@ -227,24 +229,30 @@ fn render_timings(quick: bool, table: &mut String) -> anyhow::Result<()> {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()?;
-        let glint_stats = pool
-            .install(|| glint_tracer::render(&glint, &settings, 0.0, &|_, _| {}))?
-            .statistics;
-        let smooth_stats = pool
-            .install(|| glint_tracer::render(&smooth, &settings, 0.0, &|_, _| {}))?
-            .statistics;
-        for (name, s) in [("glint", &glint_stats), ("smooth", &smooth_stats)] {
+        let run = |scene: &glint_tracer::Scene| {
+            pool.install(|| glint_tracer::render(scene, &settings, 0.0, &|_, _| {}))
+                .map(|output| output.statistics)
+        };
+        let glint_stats = run(&glint)?;
+        let traversed_stats = run(&traversed)?;
+        let smooth_stats = run(&smooth)?;
+        for (name, s) in [
+            ("glint", &glint_stats),
+            ("glint, every query traversed", &traversed_stats),
+            ("smooth", &smooth_stats),
+        ] {
             writeln!(
                 table,
-                "| {threads} | {name} | {:.2} | {:.3} | {} | {:.1} | {:.3} | {:.0} | {} |",
+                "| {threads} | {name} | {:.2} | {:.3} | {} ({} skipped) | {:.1} | {:.3} | {:.0} | {} |",
                 s.seconds,
                 s.rays_per_second() * 1e-6,
                 s.glint.queries,
+                s.glint.negligible_queries,
                 s.nodes_per_query(),
                 s.particles_per_query(),
                 s.queries_per_second(),
-                if name == "glint" {
-                    format!("{:.1}×", glint_stats.seconds / smooth_stats.seconds)
+                if s.glint.queries > 0 {
+                    format!("{:.2}×", s.seconds / smooth_stats.seconds)
                 } else {
                     String::new()
                 }

@@ -4,6 +4,11 @@
 //! it, in order. A line that is not valid JSON or holds invalid values yields
 //! `{"error": "..."}` naming the problem; the run goes on and the exit status is non-zero.
 //! Materials are built once per distinct `material` object and reused.
+//!
+//! Beyond DESIGN.md's fields, a material may give `expected_footprint_area` (Eq. 11),
+//! `pdf_points` and `negligible_count` (skip queries whose expected count is provably below it;
+//! default 0, every query traversed). An `eval` answer that was skipped carries
+//! `"negligible_bound"`, the bound on its expected count.
 
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
@@ -101,14 +106,18 @@ impl Evaluator {
                 )
                 .map_err(|e| format!("footprint: {e}"))?;
                 let e = brdf.evaluate(wi, wo, &footprint, &mut self.scratch);
-                Ok(json!({
+                let mut answer = json!({
                     "count": e.count,
                     "expected_count": e.expected_count,
                     "d_hat": e.d_hat.x,
                     "f_hat": colour(e.f_hat),
                     "f_smooth": colour(e.f_smooth),
                     "nodes_visited": e.nodes_visited,
-                }))
+                });
+                if let Some(bound) = e.negligible {
+                    answer["negligible_bound"] = json!(bound);
+                }
+                Ok(answer)
             }
             "sample" => {
                 let u = numbers::<3>(request, "u")?;
@@ -133,7 +142,7 @@ impl Evaluator {
 /// The material's parameters and whether its Fresnel term is gray.
 fn parse_material(material: &Value) -> Result<(GlintParameters, bool), String> {
     let m = material.as_object().ok_or("`material` must be an object")?;
-    const KNOWN: [&str; 11] = [
+    const KNOWN: [&str; 12] = [
         "distribution",
         "alpha",
         "alpha_y",
@@ -145,6 +154,7 @@ fn parse_material(material: &Value) -> Result<(GlintParameters, bool), String> {
         "multinomial",
         "expected_footprint_area",
         "pdf_points",
+        "negligible_count",
     ];
     if let Some(unknown) = m.keys().find(|k| !KNOWN.contains(&k.as_str())) {
         return Err(format!(
@@ -192,6 +202,9 @@ fn parse_material(material: &Value) -> Result<(GlintParameters, bool), String> {
         "material.expected_footprint_area",
     )? {
         parameters.expected_footprint_area = area;
+    }
+    if let Some(count) = optional_number(m, "negligible_count", "material.negligible_count")? {
+        parameters.negligible_count = count;
     }
     if let Some(points) = optional_number(m, "pdf_points", "material.pdf_points")? {
         parameters.pdf_points = points as usize;

@@ -44,6 +44,11 @@ pub(crate) struct RenderArgs {
     /// model's coherent ones).
     #[arg(long)]
     pub(crate) per_frame_glints: bool,
+    /// Sets every glint material's `negligible_count`: skip queries provably expecting fewer
+    /// particles (0 traverses every query; default: each material's, 1e-12 unless its scene
+    /// file says otherwise).
+    #[arg(long, value_name = "COUNT")]
+    pub(crate) negligible_count: Option<f64>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
@@ -108,6 +113,8 @@ pub(crate) fn statistics_json(
         "rays": s.rays,
         "rays_per_second": s.rays_per_second(),
         "glint_queries": s.glint.queries,
+        "negligible_queries": s.glint.negligible_queries,
+        "negligible_bound": s.glint.negligible_bound,
         "nodes_per_query": s.nodes_per_query(),
         "overlapping_nodes_per_query": s.glint.overlapping_nodes_per_query(),
         "particles_per_query": s.particles_per_query(),
@@ -115,6 +122,8 @@ pub(crate) fn statistics_json(
         "materials": s.glint_by_material.iter().map(|(name, c)| serde_json::json!({
             "name": name,
             "glint_queries": c.queries,
+            "negligible_queries": c.negligible_queries,
+            "negligible_bound": c.negligible_bound,
             "nodes_per_query": c.nodes_per_query(),
             "overlapping_nodes_per_query": c.overlapping_nodes_per_query(),
             "particles_per_query": c.particles_per_query(),
@@ -138,6 +147,11 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let build_start = std::time::Instant::now();
     let mut scene = load_scene(&scene_path)?;
     let build_seconds = build_start.elapsed().as_secs_f64();
+    if let Some(count) = args.negligible_count {
+        scene
+            .set_negligible_count(count)
+            .context("--negligible-count")?;
+    }
     if args.smooth {
         scene.make_smooth();
     }

@@ -107,6 +107,10 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
         ),
         ("brdf: energy", Box::new(crate::validate_brdf::energy)),
         (
+            "brdf: negligible queries",
+            Box::new(|r| crate::validate_brdf::negligible_queries(quick, r)),
+        ),
+        (
             "brdf: convergence",
             Box::new(|r| crate::validate_brdf::convergence(quick, out, r)),
         ),

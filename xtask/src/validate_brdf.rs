@@ -186,3 +186,55 @@ pub(crate) fn convergence(
         summary: format!("7 particle counts, {failures} means off"),
     })
 }
+
+/// Queries skipped as negligible, traversed anyway: their particles against Σλ̄, from near
+/// the highlight of a sparse material to the far tails of a dense one (glint-brdf's
+/// "Negligible queries"; `glint_tests::counts::skipped_query_particles`).
+pub(crate) fn negligible_queries(quick: bool, report: &mut String) -> anyhow::Result<Check> {
+    writeln!(
+        report,
+        "## Negligible queries\n\nRandom queries (Beckmann α = 0.1, γ = 6°, footprints of side \
+         10⁻³, ε = 0) with `negligible_count` = ½; every skipped query is traversed anyway. \
+         Pass: the particles found stay within Σλ̄ + 4√Σλ̄ + 4 (a count of mean ≤ Σλ̄ exceeds it \
+         with probability ~1e-4), and queries not skipped match the traversal bit for bit.\n\n\
+         | N | directions | queries | skipped | Σλ̄ (bound) | particles found |\n\
+         |---|---|---|---|---|---|"
+    )?;
+    let scale = if quick { 1 } else { 5 };
+    let mut passed = true;
+    let mut summary = Vec::new();
+    for (particles, near_highlight, queries) in [
+        (2e6, true, 4000 * scale),
+        (1e12, false, 1000 * scale),
+        (1e15, false, if quick { 0 } else { 500 }),
+    ] {
+        if queries == 0 {
+            continue;
+        }
+        let check =
+            glint_tests::counts::skipped_query_particles(particles, near_highlight, queries, 31);
+        passed &= check.mismatched == 0 && check.within_bound();
+        writeln!(
+            report,
+            "| {particles:e} | {} | {queries} | {} | {:.1} | {} |",
+            if near_highlight {
+                "near the highlight"
+            } else {
+                "uniform"
+            },
+            check.skipped,
+            check.bound_sum,
+            check.found
+        )?;
+        summary.push(format!(
+            "N={particles:e}: {} vs Σλ̄ {:.1}",
+            check.found, check.bound_sum
+        ));
+    }
+    writeln!(report)?;
+    Ok(Check {
+        name: "negligible queries",
+        passed,
+        summary: summary.join(", "),
+    })
+}

@@ -8,6 +8,10 @@
 //!    to f; γ = 0.5° makes that 16 times smaller.
 //! 2. The same scene at N = 10⁹ for ε ∈ {0, 0.01, 0.1, 0.3}: the relative RMS image difference
 //!    against the exact (ε = 0) render, at equal samples and seeds, and the render times.
+//! 3. The same scene at N = 10⁹ with negligible queries skipped at τ ∈ {10⁻¹², 10⁻⁶, 10⁻²}
+//!    against traversing every query: time, queries skipped, Σλ̄ (the bound on the particles
+//!    missed) and the pixels that differ. At the scene files' default τ = 10⁻¹² the image must
+//!    be identical whenever Σλ̄ < 10⁻³ (it differs at all with probability below Σλ̄).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -20,7 +24,7 @@ use glint_tracer::{Scene, render};
 use crate::validate::Check;
 
 /// The scene: a Beckmann α = 0.2, γ = 0.5° glint floor, a sphere light behind, direct light.
-fn scene_text(particles: f64, epsilon: f64, quick: bool) -> String {
+fn scene_text(particles: f64, epsilon: f64, negligible_count: f64, quick: bool) -> String {
     let (width, height, spp) = if quick { (48, 27, 8) } else { (96, 54, 32) };
     // γ = 0.5°: f̂ converges to f convolved with the cone, which differs from f itself by
     // +1.2% in this image at γ = 2° (measured, with ε = 0 too) and 16 times less here. The
@@ -42,6 +46,7 @@ alpha = 0.2
 particles = {particles:e}
 gamma = {gamma}
 epsilon = {epsilon}
+negligible_count = {negligible_count:e}
 seed = 5
 uv_scale = {uv_scale}
 [[shapes]]
@@ -59,9 +64,15 @@ power = 200.0
     )
 }
 
-fn build(particles: f64, epsilon: f64, quick: bool) -> anyhow::Result<Scene> {
+/// The scene with every query traversed (`negligible_count` = 0) unless `negligible_count`.
+fn build(
+    particles: f64,
+    epsilon: f64,
+    negligible_count: f64,
+    quick: bool,
+) -> anyhow::Result<Scene> {
     Ok(parse_scene(
-        &scene_text(particles, epsilon, quick),
+        &scene_text(particles, epsilon, negligible_count, quick),
         Path::new("validate-render.toml"),
     )?)
 }
@@ -91,8 +102,8 @@ pub(crate) fn renders(quick: bool, report: &mut String) -> anyhow::Result<Check>
     // freedom), over the blocks that carry at least 1% of the brightest block's radiance: far
     // in the tail of D the expected count per pixel is ≪ 1 even at N = 10¹², and the model
     // rightly shows (rare) glints there instead of a faint smooth tail.
-    let glint = build(1e12, 0.1, quick)?;
-    let mut smooth = build(1e12, 0.1, quick)?;
+    let glint = build(1e12, 0.1, 0.0, quick)?;
+    let mut smooth = build(1e12, 0.1, 0.0, quick)?;
     smooth.make_smooth();
     let mut settings = glint.settings;
     let seeds = 8u64;
@@ -165,7 +176,7 @@ pub(crate) fn renders(quick: bool, report: &mut String) -> anyhow::Result<Check>
     let mut exact: Option<RgbImage> = None;
     let mut finite = true;
     for epsilon in [0.0, 0.01, 0.1, 0.3] {
-        let scene = build(1e9, epsilon, quick)?;
+        let scene = build(1e9, epsilon, 0.0, quick)?;
         let output = render(&scene, &scene.settings, 0.0, &|_, _| {})?;
         finite &= output.image.pixels.iter().all(|p| p.is_finite());
         let difference = match &exact {
@@ -190,12 +201,62 @@ pub(crate) fn renders(quick: bool, report: &mut String) -> anyhow::Result<Check>
         }
     }
     writeln!(report)?;
+    // 3. Negligible queries skipped against every query traversed (ε = 0.1, the default).
+    writeln!(
+        report,
+        "**Negligible queries skipped** (the same scene at N = 10⁹, ε = 0.1, equal samples and \
+         seeds, against traversing every query):\n\n\
+         | τ | render time | queries skipped | Σλ̄ (particles missed, bound) | pixels that differ |\n\
+         |---|---|---|---|---|"
+    )?;
+    let traversed = build(1e9, 0.1, 0.0, quick)?;
+    let reference = render(&traversed, &traversed.settings, 0.0, &|_, _| {})?;
+    writeln!(
+        report,
+        "| 0 | {:.2} s | 0 of {} | 0 | |",
+        reference.statistics.seconds, reference.statistics.glint.queries
+    )?;
+    let mut default_identical = false;
+    let mut default_bound = f64::INFINITY;
+    let default_count = glint_tracer::scene_file::SCENE_NEGLIGIBLE_COUNT;
+    for (negligible_count, is_default) in [(default_count, true), (1e-6, false), (1e-2, false)] {
+        let scene = build(1e9, 0.1, negligible_count, quick)?;
+        let output = render(&scene, &scene.settings, 0.0, &|_, _| {})?;
+        let differing = output
+            .image
+            .pixels
+            .iter()
+            .zip(&reference.image.pixels)
+            .filter(|(a, b)| a != b)
+            .count();
+        let glint = &output.statistics.glint;
+        writeln!(
+            report,
+            "| {negligible_count:e} | {:.2} s | {} of {} | {:.1e} | {differing} |",
+            output.statistics.seconds,
+            glint.negligible_queries,
+            glint.queries,
+            glint.negligible_bound,
+        )?;
+        if is_default {
+            default_identical = differing == 0;
+            default_bound = glint.negligible_bound;
+        }
+    }
+    writeln!(report)?;
+    let negligible_ok = default_identical || default_bound >= 1e-3;
     Ok(Check {
-        name: "renders: dense vs smooth, ε",
-        passed: dense_ok && finite,
+        name: "renders: dense vs smooth, ε, negligible queries",
+        passed: dense_ok && finite && negligible_ok,
         summary: format!(
-            "N = 1e12 vs smooth: mean {:+.2}%, paired t RMS {rms_z:.2}, worst {worst_z:.2}",
-            100.0 * relative_mean_difference
+            "N = 1e12 vs smooth: mean {:+.2}%, paired t RMS {rms_z:.2}, worst {worst_z:.2}; \
+             skipping negligible queries (Σλ̄ {default_bound:.1e}): {}",
+            100.0 * relative_mean_difference,
+            if default_identical {
+                "identical image"
+            } else {
+                "image differs"
+            }
         ),
     })
 }

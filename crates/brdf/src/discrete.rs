@@ -30,6 +30,27 @@
 //! the smooth BRDF convolved with the cone; `cargo test` and `cargo xtask validate` check the
 //! mean over footprint positions against the smooth BRDF.
 //!
+//! # Negligible queries (an approximation, off by default)
+//! Far from a highlight a query expects almost nothing, yet the tree must split until the
+//! nodes meeting it are empty or disjoint. With `negligible_count` = τ > 0 a query is answered
+//! 0 without a traversal when a cheap upper bound λ̄ on its expected count is below τ. A count
+//! is a non-negative integer with mean λ ≤ λ̄, so P(count ≥ 1) ≤ λ (Markov): the skipped query
+//! differs from its traversal with probability below τ, and a render of Q queries differs from
+//! the exact one anywhere with probability at most Σλ̄ < Q·τ (the tracer reports Σλ̄).
+//!
+//! The bound, for an elliptic conic (hyperbolic ones are always traversed): the valid set lies
+//! in the cap of radius θ_max around its axis ([`SphericalConic::bounding_cap`]), of solid angle
+//! 2π(1 − cos θ_max). The tree places a leaf particle uniformly in a cell of diameter at most
+//! [`LEAF_CELL_ARC`], so its law's density at m is an average of p over directions within that
+//! arc of m; hence with θ_a the axis's angle from n and δ = θ_max + [`LEAF_CELL_ARC`],
+//!
+//! ```text
+//!   λ = N·a(A)·∫_{Ω_h} p  ≤  λ̄ = 2 · N·a(A) · max{p(m) : θ_m ∈ [θ_a − δ, θ_a + δ]} · 2π(1 − cos θ_max),
+//! ```
+//!
+//! the maximum from [`Microfacet::particle_density_bound`], the factor 2 a margin for the
+//! tree's quadrature (its cell probabilities match ∫p to δ_rel = 10⁻⁵, not exactly).
+//!
 //! # Without a footprint
 //! Paths after the first bounce carry no ray differentials; there (as in the paper) the BRDF
 //! is the smooth model of the same material: [`DiscreteBrdf::eval_at`] with `None`, and the
@@ -45,8 +66,8 @@
 use glam::DVec3;
 use glint_sphere::{ConeRadius, SphericalConic};
 use glint_tree::{
-    CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryResult, QueryScratch,
-    expected_conic_solid_angle,
+    CountTree, CountTreeConfig, Footprint, LEAF_CELL_ARC, MultinomialMode, QueryResult,
+    QueryScratch, expected_conic_solid_angle,
 };
 
 use crate::distribution::{Microfacet, NormalSampling};
@@ -81,11 +102,15 @@ pub struct GlintParameters {
     pub pdf_points: usize,
     /// The expected footprint area for Eq. 11 (texture units).
     pub expected_footprint_area: f64,
+    /// Queries whose expected count is provably below this are answered 0 without a tree
+    /// traversal (see "Negligible queries" in the module docs); 0 disables the test.
+    pub negligible_count: f64,
 }
 
 impl GlintParameters {
     /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, seed 0, F = 1,
-    /// exact multinomials, no colour, α_s = 2α, 64 pdf points, footprints of 10⁻⁶.
+    /// exact multinomials, no colour, α_s = 2α, 64 pdf points, footprints of 10⁻⁶, every
+    /// query traversed (no negligible-query test).
     #[must_use]
     pub fn new(distribution: Microfacet) -> Self {
         Self {
@@ -100,6 +125,7 @@ impl GlintParameters {
             sampling_scale: 2.0,
             pdf_points: 64,
             expected_footprint_area: 1e-6,
+            negligible_count: 0.0,
         }
     }
 }
@@ -121,6 +147,9 @@ pub struct GlintEvaluation {
     pub nodes_visited: u32,
     /// The visited nodes that meet the query.
     pub nodes_overlapping: u32,
+    /// `Some(λ̄)` when the query was skipped as negligible: the bound on its expected count
+    /// (below `negligible_count`); `None` when the tree was traversed.
+    pub negligible: Option<f64>,
 }
 
 /// f̂ for one footprint with the size of its tree query.
@@ -134,6 +163,8 @@ pub struct FootprintEvaluation {
     pub nodes_visited: u32,
     /// The visited nodes that meet the query.
     pub nodes_overlapping: u32,
+    /// `Some(λ̄)` when the query was skipped as negligible (see [`GlintEvaluation::negligible`]).
+    pub negligible: Option<f64>,
 }
 
 /// One tree query with the unit directions and conic it was made for.
@@ -143,6 +174,8 @@ struct ConicQuery {
     conic: SphericalConic,
     result: QueryResult,
     f_hat: DVec3,
+    /// `Some(λ̄)` when the traversal was skipped as negligible.
+    negligible: Option<f64>,
 }
 
 /// The discrete stochastic microfacet BRDF of a material.
@@ -172,6 +205,11 @@ impl DiscreteBrdf {
         if !(parameters.sampling_scale >= 1.0 && parameters.sampling_scale.is_finite()) {
             return Err(BrdfError::InvalidSamplingScale {
                 scale: parameters.sampling_scale,
+            });
+        }
+        if !(parameters.negligible_count >= 0.0 && parameters.negligible_count.is_finite()) {
+            return Err(BrdfError::InvalidNegligibleCount {
+                count: parameters.negligible_count,
             });
         }
         if !(1..=4096).contains(&parameters.pdf_points) {
@@ -257,6 +295,7 @@ impl DiscreteBrdf {
                 d_hat: DVec3::ZERO,
                 nodes_visited: 0,
                 nodes_overlapping: 0,
+                negligible: None,
             };
         };
         GlintEvaluation {
@@ -267,6 +306,7 @@ impl DiscreteBrdf {
             d_hat: DVec3::from_array(query.result.d_hat),
             nodes_visited: query.result.nodes_visited,
             nodes_overlapping: query.result.nodes_overlapping,
+            negligible: query.negligible,
         }
     }
 
@@ -285,6 +325,25 @@ impl DiscreteBrdf {
         // The conic normalizes and checks the directions; its unit ω_i, ω_o serve Eq. 5 too.
         let conic = SphericalConic::with_cone(wi, wo, &self.cone).ok()?;
         let (wi, wo) = (conic.wi(), conic.wo());
+        if self.parameters.negligible_count > 0.0 {
+            let bound = self.expected_count_bound(footprint, &conic);
+            if bound < self.parameters.negligible_count {
+                return Some(ConicQuery {
+                    wi,
+                    wo,
+                    conic,
+                    result: QueryResult {
+                        count: 0.0,
+                        d_hat: [0.0; 3],
+                        nodes_visited: 0,
+                        nodes_overlapping: 0,
+                        truncated: false,
+                    },
+                    f_hat: DVec3::ZERO,
+                    negligible: Some(bound),
+                });
+            }
+        }
         let result = self.tree.query(footprint, &conic, scratch);
         let f_hat =
             self.f_hat_from_d_hat(wi, wo, DVec3::from_array(result.d_hat), footprint.area());
@@ -294,7 +353,40 @@ impl DiscreteBrdf {
             conic,
             result,
             f_hat,
+            negligible: None,
         })
+    }
+
+    /// λ̄ ≥ N·a(A)·∫_{Ω_h} p, the upper bound on a query's expected count derived in the module
+    /// docs ("Negligible queries"): a few multiplications, a square root and an exponential.
+    /// Infinite for hyperbolic conics (no cap holds them).
+    #[must_use]
+    pub fn expected_count_bound(&self, footprint: &Footprint, conic: &SphericalConic) -> f64 {
+        let Some((axis, cap_cos, cap_sin)) = conic.bounding_cap() else {
+            return f64::INFINITY;
+        };
+        // δ = θ_max + LEAF_CELL_ARC by the angle-sum formulas.
+        let (arc_sin, arc_cos) = LEAF_CELL_ARC.sin_cos();
+        let (delta_cos, delta_sin) = (
+            cap_cos * arc_cos - cap_sin * arc_sin,
+            cap_sin * arc_cos + cap_cos * arc_sin,
+        );
+        let (axis_cos, axis_sin) = (axis.z, (1.0 - axis.z * axis.z).max(0.0).sqrt());
+        let cos_near = if axis_cos >= delta_cos {
+            1.0
+        } else {
+            axis_cos * delta_cos + axis_sin * delta_sin
+        };
+        let cos_far = axis_cos * delta_cos - axis_sin * delta_sin;
+        let density = self
+            .smooth
+            .distribution()
+            .particle_density_bound(cos_near, cos_far);
+        // 2π(1 − cos θ_max), written without cancellation for tiny caps.
+        let cap_solid_angle = 2.0 * std::f64::consts::PI * cap_sin * cap_sin / (1.0 + cap_cos);
+        let bound =
+            2.0 * self.parameters.particles as f64 * footprint.area() * density * cap_solid_angle;
+        if bound.is_nan() { f64::INFINITY } else { bound }
     }
 
     /// f̂ for a footprint, or the smooth BRDF when there is none (paths after the first bounce).
@@ -328,12 +420,14 @@ impl DiscreteBrdf {
                 count: query.result.count,
                 nodes_visited: query.result.nodes_visited,
                 nodes_overlapping: query.result.nodes_overlapping,
+                negligible: query.negligible,
             },
             None => FootprintEvaluation {
                 f_hat: DVec3::ZERO,
                 count: 0.0,
                 nodes_visited: 0,
                 nodes_overlapping: 0,
+                negligible: None,
             },
         }
     }

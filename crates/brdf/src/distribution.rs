@@ -121,6 +121,52 @@ impl Microfacet {
         self.d(m) * m.z.max(0.0)
     }
 
+    /// An upper bound on p(m) = D(m)(m·n) over the unit normals whose angle θ from n lies
+    /// between the angles of `cos_near` and `cos_far` (cos_near ≥ cos_far; cos_far ≤ 0 reaches
+    /// the horizon). For the negligible-query test of [`crate::DiscreteBrdf`].
+    ///
+    /// With t = tan²θ and α_m = max(α_x, α_y), the slope term obeys
+    /// (x²/α_x² + y²/α_y²)/z² ≥ t/α_m², so for both distributions
+    ///
+    /// ```text
+    ///   Beckmann:  p ≤ P(t) = (1 + t)^{3/2} e^{−t/α_m²}      / (π α_x α_y)
+    ///   GGX:       p ≤ P(t) = (1 + t)^{3/2} / (1 + t/α_m²)²  / (π α_x α_y)
+    /// ```
+    ///
+    /// using z⁻³ = (1 + t)^{3/2}. Each P is unimodal in t: d ln P/dt is 3/(2(1 + t)) − 1/α_m²
+    /// (Beckmann) or 3/(2(1 + t)) − 2/(α_m² + t) (GGX), which changes sign once, at
+    /// t* = 3α_m²/2 − 1 and t* = 3α_m² − 4 respectively (t* ≤ 0 means P decreases from the
+    /// normal on). The maximum over [t_near, t_far] is therefore P(clamp(t*, t_near, t_far)).
+    #[must_use]
+    pub fn particle_density_bound(&self, cos_near: f64, cos_far: f64) -> f64 {
+        let tan2 = |c: f64| {
+            if c <= 0.0 {
+                f64::INFINITY
+            } else {
+                (1.0 - c * c).max(0.0) / (c * c)
+            }
+        };
+        let (t_near, t_far) = (tan2(cos_near.min(1.0)), tan2(cos_far));
+        let alpha2 = self.alpha_x.max(self.alpha_y).powi(2);
+        let t_peak = match self.kind {
+            DistributionKind::Beckmann => 1.5 * alpha2 - 1.0,
+            DistributionKind::Ggx => 3.0 * alpha2 - 4.0,
+        };
+        let t = t_peak.clamp(t_near, t_far.max(t_near));
+        if !t.is_finite() {
+            return 0.0;
+        }
+        let normalization = std::f64::consts::PI * self.alpha_x * self.alpha_y;
+        let rise = (1.0 + t) * (1.0 + t).sqrt();
+        match self.kind {
+            DistributionKind::Beckmann => rise * (-t / alpha2).exp() / normalization,
+            DistributionKind::Ggx => {
+                let fall = 1.0 + t / alpha2;
+                rise / (fall * fall * normalization)
+            }
+        }
+    }
+
     /// Smith's Λ(ω) for a unit direction ω above the horizon.
     #[must_use]
     pub fn lambda(&self, w: DVec3) -> f64 {

@@ -22,6 +22,11 @@ pub enum BrdfError {
         /// The rejected value.
         scale: f64,
     },
+    /// The negligible-count threshold must be finite and ≥ 0.
+    InvalidNegligibleCount {
+        /// The rejected value.
+        count: f64,
+    },
     /// The pdf's quadrature needs 1 to 4096 points.
     InvalidPdfPoints {
         /// The rejected value.
@@ -53,6 +58,10 @@ impl fmt::Display for BrdfError {
                     "sampling roughness scale {scale} is invalid: it must be finite and >= 1"
                 )
             }
+            Self::InvalidNegligibleCount { count } => write!(
+                f,
+                "negligible count {count} is invalid: it must be finite and >= 0 (0 disables it)"
+            ),
             Self::InvalidPdfPoints { points } => {
                 write!(f, "{points} pdf quadrature points requested: use 1 to 4096")
             }

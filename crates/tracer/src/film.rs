@@ -64,10 +64,12 @@ impl std::fmt::Display for RenderStatistics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{:.2} s, {:.2} Mrays/s; {} glint queries, {:.1} nodes ({:.1} meeting the query) and {:.3} particles per query, {:.0} queries/s",
+            "{:.2} s, {:.2} Mrays/s; {} glint queries ({} skipped as negligible, Σ bound {:.1e}), {:.1} nodes ({:.1} meeting the query) per traversed query, {:.3} particles per query, {:.0} queries/s",
             self.seconds,
             self.rays_per_second() * 1e-6,
             self.glint.queries,
+            self.glint.negligible_queries,
+            self.glint.negligible_bound,
             self.nodes_per_query(),
             self.glint.overlapping_nodes_per_query(),
             self.particles_per_query(),

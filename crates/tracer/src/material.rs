@@ -81,8 +81,19 @@ impl GlintMaterial {
     /// # Errors
     /// None in practice: the parameters were valid when the material was built.
     pub fn reseeded(&self, seed: u64) -> Result<Self, glint_brdf::BrdfError> {
+        self.rebuilt(|parameters| parameters.seed = seed)
+    }
+
+    /// The same material with its parameters changed by `change` (rebuilds the tree: ~2 ms).
+    ///
+    /// # Errors
+    /// A [`glint_brdf::BrdfError`] if the changed parameters are invalid.
+    pub fn rebuilt(
+        &self,
+        change: impl FnOnce(&mut glint_brdf::GlintParameters),
+    ) -> Result<Self, glint_brdf::BrdfError> {
         let mut parameters = *self.brdf.parameters();
-        parameters.seed = seed;
+        change(&mut parameters);
         Ok(Self {
             brdf: Arc::new(DiscreteBrdf::new(parameters)?),
             uv_scale: self.uv_scale,
@@ -116,6 +127,12 @@ pub struct GlintCounters {
     pub nodes_overlapping: u64,
     /// Particles found, summed over queries.
     pub particles_found: f64,
+    /// Queries skipped as negligible (answered 0 without a traversal; counted in `queries`).
+    pub negligible_queries: u64,
+    /// The skipped queries' bounds on their expected counts, summed: an upper bound on the
+    /// expected number of particles the skipping missed, and on the probability that the image
+    /// differs from a render that traverses every query.
+    pub negligible_bound: f64,
 }
 
 impl GlintCounters {
@@ -125,18 +142,27 @@ impl GlintCounters {
         self.nodes_visited += other.nodes_visited;
         self.nodes_overlapping += other.nodes_overlapping;
         self.particles_found += other.particles_found;
+        self.negligible_queries += other.negligible_queries;
+        self.negligible_bound += other.negligible_bound;
     }
 
-    /// Mean tree nodes visited per query.
+    /// Queries that traversed the tree (not skipped as negligible).
+    #[must_use]
+    pub fn traversed_queries(&self) -> u64 {
+        self.queries - self.negligible_queries
+    }
+
+    /// Mean tree nodes visited per traversed query (skipped queries visit none; leaving them
+    /// out keeps the figure comparable with the paper's Table 1, which skips nothing).
     #[must_use]
     pub fn nodes_per_query(&self) -> f64 {
-        self.nodes_visited as f64 / self.queries.max(1) as f64
+        self.nodes_visited as f64 / self.traversed_queries().max(1) as f64
     }
 
-    /// Mean nodes meeting the query per query.
+    /// Mean nodes meeting the query per traversed query.
     #[must_use]
     pub fn overlapping_nodes_per_query(&self) -> f64 {
-        self.nodes_overlapping as f64 / self.queries.max(1) as f64
+        self.nodes_overlapping as f64 / self.traversed_queries().max(1) as f64
     }
 
     /// Mean particles found per query.
@@ -205,6 +231,10 @@ impl GlintMaterial {
         ctx.counters.nodes_visited += u64::from(result.nodes_visited);
         ctx.counters.nodes_overlapping += u64::from(result.nodes_overlapping);
         ctx.counters.particles_found += result.count;
+        if let Some(bound) = result.negligible {
+            ctx.counters.negligible_queries += 1;
+            ctx.counters.negligible_bound += bound;
+        }
         result.f_hat
     }
 }
@@ -256,15 +286,32 @@ impl Material {
     /// # Errors
     /// As [`GlintMaterial::reseeded`].
     pub fn reseeded(&self, salt: u64) -> Result<Self, glint_brdf::BrdfError> {
+        self.map_glints(&|g| {
+            let seed = g.brdf.parameters().seed;
+            g.reseeded(seed ^ salt.wrapping_mul(0x9e37_79b9_7f4a_7c15))
+        })
+    }
+
+    /// The same material with every glint part's `negligible_count` set to `count` (0
+    /// traverses every query; see glint-brdf's "Negligible queries").
+    ///
+    /// # Errors
+    /// [`glint_brdf::BrdfError::InvalidNegligibleCount`] unless `count` is finite and ≥ 0.
+    pub fn with_negligible_count(&self, count: f64) -> Result<Self, glint_brdf::BrdfError> {
+        self.map_glints(&|g| g.rebuilt(|parameters| parameters.negligible_count = count))
+    }
+
+    /// The material with every glint part replaced by `rebuild` of it (other parts cloned).
+    fn map_glints(
+        &self,
+        rebuild: &dyn Fn(&GlintMaterial) -> Result<GlintMaterial, glint_brdf::BrdfError>,
+    ) -> Result<Self, glint_brdf::BrdfError> {
         Ok(match self {
-            Self::Glint(g) => {
-                let seed = g.brdf.parameters().seed;
-                Self::Glint(g.reseeded(seed ^ salt.wrapping_mul(0x9e37_79b9_7f4a_7c15))?)
-            }
+            Self::Glint(g) => Self::Glint(rebuild(g)?),
             Self::Mix(parts) => Self::Mix(
                 parts
                     .iter()
-                    .map(|(w, m)| Ok((*w, m.reseeded(salt)?)))
+                    .map(|(w, m)| Ok((*w, m.map_glints(rebuild)?)))
                     .collect::<Result<_, glint_brdf::BrdfError>>()?,
             ),
             other => other.clone(),

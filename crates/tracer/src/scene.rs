@@ -53,6 +53,17 @@ impl Scene {
         }
     }
 
+    /// Sets every glint material's `negligible_count` (0 traverses every query).
+    ///
+    /// # Errors
+    /// [`glint_brdf::BrdfError::InvalidNegligibleCount`] unless `count` is finite and ≥ 0.
+    pub fn set_negligible_count(&mut self, count: f64) -> Result<(), glint_brdf::BrdfError> {
+        for m in &mut self.materials {
+            *m = m.with_negligible_count(count)?;
+        }
+        Ok(())
+    }
+
     /// Sets the materials to `base` with a particle set of their own for camera frame `frame`
     /// (per-frame glint randomness; only glint materials change). Coherent animations do not
     /// call this.

@@ -29,6 +29,12 @@ use crate::mesh::Mesh;
 use crate::scene::Scene;
 use crate::shape::{Rectangle, Sphere};
 
+/// A glint material's `negligible_count` when the scene file gives none: queries provably
+/// expecting fewer particles are skipped (glint-brdf's "Negligible queries"). A render of Q
+/// queries then differs from the fully traversed one anywhere with probability below Q·10⁻¹²
+/// (10⁻⁴ for 10⁸ queries); the render statistics report the bound's sum over skipped queries.
+pub const SCENE_NEGLIGIBLE_COUNT: f64 = 1e-12;
+
 /// A colour: one number (grey) or three (linear RGB).
 #[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(untagged)]
@@ -262,6 +268,7 @@ struct GlintSection {
     sampling_scale: Option<f64>,
     pdf_points: Option<usize>,
     expected_footprint_area: Option<f64>,
+    negligible_count: Option<f64>,
     uv_scale: Option<f64>,
 }
 
@@ -625,6 +632,14 @@ impl Builder<'_> {
         if let Some(a) = g.expected_footprint_area {
             parameters.expected_footprint_area = a;
         }
+        let negligible_count = g.negligible_count.unwrap_or(SCENE_NEGLIGIBLE_COUNT);
+        if !(negligible_count >= 0.0 && negligible_count.is_finite()) {
+            return self.fail(
+                format!("{field}.negligible_count"),
+                format!("must be finite and ≥ 0 (0 traverses every query), got {negligible_count}"),
+            );
+        }
+        parameters.negligible_count = negligible_count;
         let uv_scale = self.positive(&format!("{field}.uv_scale"), g.uv_scale.unwrap_or(1.0))?;
         let brdf = DiscreteBrdf::new(parameters).map_err(|e| self.brdf_error(field, &e))?;
         Ok(Material::Glint(GlintMaterial {
@@ -1198,6 +1213,12 @@ power = 10
                 "weight = 0.7",
                 "weight = -1",
                 "materials.both.components[0].weight",
+                "≥ 0",
+            ),
+            (
+                "gamma = 2",
+                "gamma = 2\nnegligible_count = -1e-9",
+                "materials.sparkle.negligible_count",
                 "≥ 0",
             ),
             ("[render]", "[render", "", "TOML parse error"),

@@ -835,8 +835,12 @@ fn accumulate(sums: &mut [f64; 3], areas: [f64; 3], factor: f64) {
     }
 }
 
-/// The chord of an arc of 0.01 rad, 2·sin(0.005): leaf particles' normals descend the
-/// directional hierarchy until the cell's longest edge is below this arc.
+/// Leaf particles' normals descend the directional hierarchy until the cell's longest edge is
+/// below this arc (radians), then land uniformly in the cell: a particle's normal is within
+/// this angle of every direction of the last cell it reached.
+pub const LEAF_CELL_ARC: f64 = 0.01;
+
+/// The chord of [`LEAF_CELL_ARC`], 2·sin(0.005).
 const LEAF_CELL_CHORD: f64 = 0.009_999_958_333_385_416;
 
 /// The directional law of the tree below a leaf, for one particle: descend the directional
