@@ -354,10 +354,12 @@ fn particle_density_bound_holds_and_is_attained() {
 
 /// λ̄ bounds the expected count N·a(A)·∫p, against an independent Monte Carlo integral over
 /// reflected directions: near and far from highlights, at grazing angles, for both
-/// distributions, isotropic and anisotropic. (The tree's own `expected_count` is not a bound's
-/// reference in the far tails: it spreads a coarse cell's one-point integral uniformly over
-/// the cell, while the traversal keeps splitting; the particles themselves are checked in
-/// `negligible_queries_are_skipped_within_their_bound`.)
+/// distributions, isotropic and anisotropic. (λ̄ bounds the tree's particles, whose law
+/// exceeds p in the far tails, so it is at least the model's expectation; the tree's own
+/// `expected_count` spreads a coarse cell's integral uniformly over the cell and is no
+/// reference there. The particles themselves are checked in
+/// `negligible_queries_are_skipped_within_their_bound`, the law in
+/// `directional_law_excess_is_its_definition`.) A material that skips nothing has λ̄ = ∞.
 #[test]
 fn expected_count_bound_bounds_the_expected_count() {
     let mut rng = SplitMix64::new(23);
@@ -373,6 +375,7 @@ fn expected_count_bound_bounds_the_expected_count() {
             let mut parameters = GlintParameters::new(d);
             parameters.particles = 1_000_000_000;
             parameters.gamma = f64::to_radians(gamma_deg);
+            parameters.negligible_count = 1e-12;
             let brdf = DiscreteBrdf::new(parameters).unwrap();
             let density = move |m: DVec3| d.particle_density(m);
             for case in 0..40 {
@@ -415,6 +418,11 @@ fn expected_count_bound_bounds_the_expected_count() {
     }
     // The bound is not vacuous: somewhere it is within a factor of 20 of the expectation.
     assert!(tightest > 0.05, "{tightest}");
+    let d = Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap();
+    let brdf = DiscreteBrdf::new(GlintParameters::new(d)).unwrap();
+    let conic = glint_sphere::SphericalConic::new(DVec3::Z, DVec3::Z, 0.01).unwrap();
+    let footprint = Footprint::new(DVec2::ZERO, DVec2::X, DVec2::Y).unwrap();
+    assert_eq!(brdf.expected_count_bound(&footprint, &conic), f64::INFINITY);
 }
 
 /// Queries skipped by `negligible_count` = ½, traversed anyway: the particles they hold stay
@@ -433,4 +441,71 @@ fn negligible_queries_are_skipped_within_their_bound() {
         assert!(check.skipped > queries / 10, "N = {particles}: {check:?}");
         assert!(check.within_bound(), "N = {particles}: {check:?}");
     }
+}
+
+/// `CountTree::directional_law_excess` against its definition, by a descent of its own
+/// through the public quadrature: a leaf particle's normal descends with the split
+/// probabilities to a final cell L (edges ≤ `LEAF_CELL_ARC`, no Alg. 2 entry) and lands
+/// uniformly in it, so W = max_L P(L)/(σ(L)·B_L). Beckmann and GGX from α = 0.01 to 1; the
+/// figures (W up to ~40 for Beckmann α = 0.3, within 2 for GGX) are in the failure message.
+#[test]
+fn directional_law_excess_is_its_definition() {
+    use glint_tree::DirectionalCell;
+    let leaf_chord = 2.0 * (0.5 * glint_tree::LEAF_CELL_ARC).sin();
+    let (mut figures, mut beckmann_03) = (Vec::new(), 0.0);
+    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for (ax, ay) in [(0.01, 0.01), (0.1, 0.1), (0.1, 0.4), (0.3, 0.3), (1.0, 1.0)] {
+            let d = Microfacet::new(kind, ax, ay).unwrap();
+            let brdf = DiscreteBrdf::new(GlintParameters::new(d)).unwrap();
+            let bound = |near: f64, far: f64| d.particle_density_bound(near, far);
+            let excess = brdf.tree().directional_law_excess(&bound);
+            let quadrature = brdf.tree().quadrature();
+            let density = move |m: DVec3| d.particle_density(m);
+            let (mut ratio, mut unbounded, mut cells) = (0.0_f64, 0.0, 0usize);
+            let mut stack = vec![(DirectionalCell::HEMISPHERE, 1.0_f64)];
+            while let Some((cell, probability)) = stack.pop() {
+                if probability == 0.0 {
+                    continue;
+                }
+                if let Some(t) = &cell.triangle
+                    && t.longest_chord() <= leaf_chord
+                    && !quadrature.has_entry(&cell)
+                {
+                    let c = t.centroid().normalize();
+                    let r = t
+                        .vertices()
+                        .iter()
+                        .map(|v| c.dot(*v).clamp(-1.0, 1.0).acos())
+                        .fold(0.0, f64::max);
+                    let theta = c.z.acos();
+                    let b = bound((theta - r).max(0.0).cos(), (theta + r).cos());
+                    if b > 0.0 {
+                        ratio = ratio.max(probability / (t.solid_angle() * b));
+                    } else {
+                        unbounded += probability;
+                    }
+                    cells += 1;
+                    continue;
+                }
+                let children = cell.children();
+                let solid_angles = children.map(|c| c.solid_angle());
+                let split = quadrature.split_probabilities(&children, &solid_angles, &density);
+                stack.extend(children.into_iter().zip(split.map(|p| probability * p)));
+            }
+            assert_eq!(excess.cells, cells, "{d:?}");
+            assert!(
+                (excess.ratio - ratio).abs() <= 1e-9 * ratio,
+                "{d:?}: {excess:?} vs {ratio}"
+            );
+            assert!((excess.unbounded_mass - unbounded).abs() <= 1e-300 + 1e-9 * unbounded);
+            assert!(excess.ratio >= 0.9, "{d:?}: {excess:?}");
+            figures.push(format!("{kind:?} {ax}/{ay}: W = {:.2}", excess.ratio));
+            if kind == DistributionKind::Beckmann && ax == 0.3 {
+                beckmann_03 = excess.ratio;
+            }
+        }
+    }
+    // The tails of Beckmann at moderate α are where Alg. 2's δ_abs acceptance shows: the
+    // law exceeds p several times over there (so λ̄ must carry W, not a fixed margin).
+    assert!(beckmann_03 > 4.0, "{figures:?}");
 }

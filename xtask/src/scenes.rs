@@ -111,7 +111,7 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
         .collect();
     files.sort();
     let mut table = String::from(
-        "| scene | N | γ | α | resolution, spp | mean nodes visited (per material) | meeting the query (per material) | mean particles found | glint time | smooth time | glint / smooth |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | N | γ | α | resolution, spp | queries skipped as negligible | mean nodes visited per traversed query (per material) | meeting the query (per material) | mean particles found | glint time | smooth time | glint / smooth |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for path in &files {
         let name = path
@@ -149,7 +149,7 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
         let parameters = glint_parameters(&glint);
         writeln!(
             table,
-            "| {name} | {} | {} | {} | {}×{}, {} | {} | {} | {:.3} | {:.1} s | {:.1} s | {:.1}× |",
+            "| {name} | {} | {} | {} | {}×{}, {} | {:.0}% | {} | {} | {:.3} | {:.1} s | {:.1} s | {:.1}× |",
             range(parameters.iter().map(|p| p.0 as f64), |x| format!(
                 "{x:.0e}"
             )),
@@ -163,6 +163,7 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
             settings.width,
             settings.height,
             settings.samples_per_pixel,
+            100.0 * g.glint.negligible_queries as f64 / g.glint.queries.max(1) as f64,
             with_material_range(g.nodes_per_query(), &g, GlintCounters::nodes_per_query),
             with_material_range(
                 g.glint.overlapping_nodes_per_query(),

@@ -52,6 +52,6 @@ pub use ndf::{DirectionalCell, NdfQuadrature, NormalDensity, QuadratureTolerance
 pub use node::NodeId;
 pub use sampling::MultinomialMode;
 pub use tree::{
-    CountTree, CountTreeConfig, LEAF_CELL_ARC, LEAF_PARTICLES, MAX_CACHED_LEVELS, MAX_PARTICLES,
-    QueryResult, QueryScratch, expected_conic_solid_angle,
+    CountTree, CountTreeConfig, DirectionalLawExcess, LEAF_CELL_ARC, LEAF_PARTICLES,
+    MAX_CACHED_LEVELS, MAX_PARTICLES, QueryResult, QueryScratch, expected_conic_solid_angle,
 };
