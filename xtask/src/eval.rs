@@ -332,6 +332,31 @@ mod tests {
         (values, failed)
     }
 
+    /// `negligible_count`: a far query is skipped and says so; a near one is not; a negative
+    /// threshold is an error naming the field.
+    #[test]
+    fn negligible_queries_are_reported() {
+        let material = MATERIAL.replace("\"seed\": 7", "\"seed\": 7, \"negligible_count\": 1e-12");
+        let eval = |wo: &str| {
+            format!(
+                r#"{{"op": "eval", "material": {material}, "uv": [0.3, 0.4], "duv_dx": [0.001, 0.0], "duv_dy": [0.0, 0.001], "wi": [0.0, 0.0, 1.0], "wo": {wo}}}"#
+            )
+        };
+        let lines = vec![
+            eval("[0.9, 0.0, 0.3]"),
+            eval("[0.01, 0.0, 1.0]"),
+            eval("[0.9, 0.0, 0.3]").replace("1e-12", "-1"),
+        ];
+        let (values, failed) = run_lines(&lines);
+        assert_eq!(failed, 1);
+        let bound = values[0]["negligible_bound"].as_f64().expect("skipped");
+        assert!((0.0..1e-12).contains(&bound), "{}", values[0]);
+        assert_eq!(values[0]["count"].as_f64(), Some(0.0));
+        assert!(values[1].get("negligible_bound").is_none(), "{}", values[1]);
+        let message = values[2]["error"].as_str().unwrap_or_default();
+        assert!(message.contains("negligible count"), "{message}");
+    }
+
     #[test]
     fn mixed_valid_and_invalid_lines() {
         let eval = format!(

@@ -30,9 +30,11 @@ use crate::scene::Scene;
 use crate::shape::{Rectangle, Sphere};
 
 /// A glint material's `negligible_count` when the scene file gives none: queries provably
-/// expecting fewer particles are skipped (glint-brdf's "Negligible queries"). A render of Q
-/// queries then differs from the fully traversed one anywhere with probability below Q·10⁻¹²
-/// (10⁻⁴ for 10⁸ queries); the render statistics report the bound's sum over skipped queries.
+/// expecting fewer particles are skipped (glint-brdf's "Negligible queries"). At ε = 0 a render
+/// of Q queries then differs from the fully traversed one anywhere with probability below
+/// Q·10⁻¹² (10⁻⁴ for 10⁸ queries); with ε > 0 the traversal's own early stops may also add
+/// fractional expectations of order ε²E² there. The render statistics report the bound's sum
+/// over skipped queries.
 pub const SCENE_NEGLIGIBLE_COUNT: f64 = 1e-12;
 
 /// A colour: one number (grey) or three (linear RGB).
