@@ -46,7 +46,7 @@
 //! and lands uniformly in it, with density P(L)/σ(L). Where Alg. 2 accepted a cell by δ_abs
 //! (the far tails) this can exceed p many times over (~40× measured for Beckmann α = 0.3 at
 //! 45°), so when the test is on, the material enumerates its final cells once
-//! ([`CountTree::directional_law_excess`], ~20 ms) for W = max_L P(L)/(σ(L)·B_L), B_L the bound
+//! ([`CountTree::directional_law_excess`], 20–40 ms) for W = max_L P(L)/(σ(L)·B_L), B_L the bound
 //! of [`Microfacet::particle_density_bound`] over L's circumscribed cap, and M, the mass of the
 //! cells where B_L = 0. A final cell meeting the conic's cap lies, with its circumscribed cap,
 //! within 2·[`LEAF_CELL_ARC`] of it; with θ_a the axis's angle from n and
@@ -199,9 +199,18 @@ pub struct DiscreteBrdf {
     cone_points: Vec<DVec3>,
     /// γ with its trigonometry, so that building a query's conic needs none.
     cone: ConeRadius,
-    /// How far the tree's directional law exceeds p (computed only when queries may be
-    /// skipped as negligible).
-    law_excess: Option<DirectionalLawExcess>,
+    /// What the negligible-query test needs (only when queries may be skipped).
+    negligible_test: Option<NegligibleTest>,
+}
+
+/// The per-material constants of the negligible-query bound, computed once.
+#[derive(Clone, Copy, Debug)]
+struct NegligibleTest {
+    /// How far the tree's directional law exceeds p.
+    law_excess: DirectionalLawExcess,
+    /// cos and sin of the widening 2·[`LEAF_CELL_ARC`].
+    widening_cos: f64,
+    widening_sin: f64,
 }
 
 impl DiscreteBrdf {
@@ -260,9 +269,15 @@ impl DiscreteBrdf {
                 uniform_in_cone(DVec3::Z, gamma, a, b)
             })
             .collect();
-        let law_excess = (parameters.negligible_count > 0.0).then(|| {
+        let negligible_test = (parameters.negligible_count > 0.0).then(|| {
             let d = parameters.distribution;
-            tree.directional_law_excess(&|near, far| d.particle_density_bound(near, far))
+            let (widening_sin, widening_cos) = (2.0 * LEAF_CELL_ARC).sin_cos();
+            NegligibleTest {
+                law_excess: tree
+                    .directional_law_excess(&|near, far| d.particle_density_bound(near, far)),
+                widening_cos,
+                widening_sin,
+            }
         });
         Ok(Self {
             parameters,
@@ -272,7 +287,7 @@ impl DiscreteBrdf {
             cone_solid_angle: 4.0 * std::f64::consts::PI * (0.5 * gamma).sin().powi(2),
             cone_points,
             cone: ConeRadius::new(gamma).map_err(|_| BrdfError::InvalidConeRadius { gamma })?,
-            law_excess,
+            negligible_test,
         })
     }
 
@@ -380,13 +395,13 @@ impl DiscreteBrdf {
     /// with `negligible_count` = 0 (which never need it).
     #[must_use]
     pub fn expected_count_bound(&self, footprint: &Footprint, conic: &SphericalConic) -> f64 {
-        let (Some(excess), Some((axis, cap_cos, cap_sin))) =
-            (self.law_excess, conic.bounding_cap())
+        let (Some(test), Some((axis, cap_cos, cap_sin))) =
+            (self.negligible_test, conic.bounding_cap())
         else {
             return f64::INFINITY;
         };
         // δ = θ_max + 2·LEAF_CELL_ARC by the angle-sum formulas.
-        let (arc_sin, arc_cos) = (2.0 * LEAF_CELL_ARC).sin_cos();
+        let (arc_cos, arc_sin) = (test.widening_cos, test.widening_sin);
         let (delta_cos, delta_sin) = (
             cap_cos * arc_cos - cap_sin * arc_sin,
             cap_sin * arc_cos + cap_cos * arc_sin,
@@ -406,7 +421,7 @@ impl DiscreteBrdf {
         let cap_solid_angle = 2.0 * std::f64::consts::PI * cap_sin * cap_sin / (1.0 + cap_cos);
         let bound = self.parameters.particles as f64
             * footprint.area()
-            * (excess.ratio * density * cap_solid_angle + excess.unbounded_mass);
+            * (test.law_excess.ratio * density * cap_solid_angle + test.law_excess.unbounded_mass);
         if bound.is_nan() { f64::INFINITY } else { bound }
     }
 

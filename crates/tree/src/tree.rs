@@ -34,7 +34,9 @@
 use std::sync::Arc;
 
 use glam::DVec2;
-use glint_sphere::{Classification, OverlapMethod, SphericalConic, overlap_solid_angle};
+use glint_sphere::{
+    Classification, OverlapMethod, SphericalConic, SphericalTriangle, overlap_solid_angle,
+};
 
 use crate::error::TreeError;
 use crate::footprint::{BoxOverlap, Footprint};
@@ -778,7 +780,7 @@ impl CountTree {
     /// the split probabilities along the path. Where Alg. 2 accepted a cell by δ_abs (the far
     /// tails) that density can exceed p by large factors (measured up to ~40 for Beckmann
     /// α = 0.3 at 45°). This enumerates every final cell with positive probability (about
-    /// 2.6·10⁵ for a wide p, ~20 ms) and compares P(L)/σ(L) with `density_bound(cos θ_near,
+    /// 2.6·10⁵ for a wide p, 20–40 ms) and compares P(L)/σ(L) with `density_bound(cos θ_near,
     /// cos θ_far)`, an upper bound on p over the directions whose angle from n lies between
     /// those of L's circumscribed cap.
     #[must_use]
@@ -796,10 +798,7 @@ impl CountTree {
             if !(probability > 0.0) {
                 continue;
             }
-            if let Some(triangle) = &cell.triangle
-                && triangle.longest_chord() <= LEAF_CELL_CHORD
-                && !self.quadrature.has_entry(&cell)
-            {
+            if let Some(triangle) = self.final_cell(&cell) {
                 // L lies within its circumscribed cap: centre c (the centroid's direction),
                 // radius r (the farthest vertex), so θ over L is within [θ_c − r, θ_c + r].
                 let centre = triangle.centroid().normalize();
@@ -920,6 +919,15 @@ const LEAF_CELL_CHORD: f64 = 0.009_999_958_333_385_416;
 /// its longest edge is below 0.01 rad, then sample the flat triangle uniformly and project
 /// (the projection's non-uniformity there is below 1e-4 relative).
 impl CountTree {
+    /// The triangle of `cell` if it is a *final cell* of the directional law: its longest edge
+    /// is below [`LEAF_CELL_ARC`] and Alg. 2 has no entry for it, so a leaf particle's normal
+    /// that reaches it lands uniformly in it.
+    fn final_cell<'a>(&self, cell: &'a DirectionalCell) -> Option<&'a SphericalTriangle> {
+        cell.triangle.as_ref().filter(|triangle| {
+            triangle.longest_chord() <= LEAF_CELL_CHORD && !self.quadrature.has_entry(cell)
+        })
+    }
+
     /// Which of the leaf particles `members` (bits indexing `particles`, each descending the
     /// law above with its own stream, all now in `cell`, which the conic classifies as
     /// `classification`) have normals in the conic; the answer has their bits set.
@@ -942,10 +950,7 @@ impl CountTree {
             Classification::TriangleInsideConic => return members,
             Classification::ConicInsideTriangle | Classification::Partial => {}
         }
-        if let Some(triangle) = &cell.triangle
-            && triangle.longest_chord() <= LEAF_CELL_CHORD
-            && !self.quadrature.has_entry(cell)
-        {
+        if let Some(triangle) = self.final_cell(cell) {
             let mut inside = 0;
             for k in self::members(members) {
                 let rng = &mut particles[k].rng;
@@ -1035,10 +1040,7 @@ mod tests {
                 Classification::TriangleInsideConic => return true,
                 Classification::ConicInsideTriangle | Classification::Partial => {}
             }
-            if let Some(triangle) = &cell.triangle
-                && triangle.longest_chord() <= LEAF_CELL_CHORD
-                && !tree.quadrature.has_entry(&cell)
-            {
+            if let Some(triangle) = tree.final_cell(&cell) {
                 let root = rng.uniform().sqrt();
                 let v = rng.uniform();
                 let normal = triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
