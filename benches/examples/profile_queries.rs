@@ -1,7 +1,8 @@
 //! Times count-tree queries at the paper's Table 1 settings in a plain loop, for profilers:
 //! `cargo run --release -p glint-benches --example profile_queries [SETTING] [SECONDS]`
 //! (under `perf record -g` for a call graph). Prints ns per query and per visited node (and per
-//! visited node that meets the query).
+//! visited node that meets the query). `ROUNDS=k` makes exactly k passes over the 4096 queries
+//! instead, for instruction counts (`valgrind --tool=callgrind`).
 
 use std::time::{Duration, Instant};
 
@@ -58,7 +59,12 @@ fn main() {
         }
         let (mut calls, mut nodes, mut overlapping) = (0u64, 0u64, 0u64);
         let started = Instant::now();
-        while started.elapsed() < Duration::from_secs_f64(seconds) {
+        // ROUNDS=k: exactly k passes over the queries (for instruction counts under valgrind).
+        let rounds = env("ROUNDS").map(|r| r as u64);
+        while match rounds {
+            Some(rounds) => calls < rounds * queries.len() as u64,
+            None => started.elapsed() < Duration::from_secs_f64(seconds),
+        } {
             for (footprint, conic) in &queries {
                 let result = tree.query(footprint, conic, &mut scratch);
                 nodes += u64::from(result.nodes_visited);
