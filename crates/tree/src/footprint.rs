@@ -47,6 +47,44 @@ enum Candidates {
     Many,
 }
 
+/// m(x) for the points of one box ([`Footprint::multiplicity_in_box`]).
+pub(crate) struct BoxMultiplicity<'a> {
+    footprint: &'a Footprint,
+    candidates: Candidates,
+}
+
+impl BoxMultiplicity<'_> {
+    /// m(x) for a point x of the box: the same as [`Footprint::multiplicity`]. A point's
+    /// candidate translates are among its box's (min − x and max − x bracket those of the box,
+    /// and rounding is monotone); they are the (i, j) with footprint min − x ≤ (i, j) ≤
+    /// footprint max − x, the integers of `multiplicity`'s ceil–floor ranges, so comparing
+    /// replaces its four roundings.
+    #[inline]
+    pub(crate) fn at(&self, x: DVec2) -> u64 {
+        let Candidates::Few([i0, i1], [j0, j1]) = self.candidates else {
+            return match self.candidates {
+                Candidates::None => 0,
+                _ => self.footprint.multiplicity(x),
+            };
+        };
+        let (lo, hi) = (self.footprint.min - x, self.footprint.max - x);
+        let mut count = 0;
+        for j in j0..=j1 {
+            let row = j as f64;
+            if row < lo.y || row > hi.y {
+                continue;
+            }
+            for i in i0..=i1 {
+                let column = i as f64;
+                if column >= lo.x && column <= hi.x {
+                    count += u64::from(self.footprint.contains(x + DVec2::new(column, row)));
+                }
+            }
+        }
+        count
+    }
+}
+
 /// ⌊x⌋ as an integer, saturating (NaN gives 0, like `x.floor() as i64`). `f64::floor` is a
 /// libm call on x86-64's baseline, and box overlaps take eight of these.
 #[inline]
@@ -345,6 +383,15 @@ impl Footprint {
         count
     }
 
+    /// The multiplicities of points of the box [min, min + size]², with the box's candidate
+    /// translates found once (a leaf of the tree needs m(x) for each of its particles).
+    pub(crate) fn multiplicity_in_box(&self, min: DVec2, size: f64) -> BoxMultiplicity<'_> {
+        BoxMultiplicity {
+            footprint: self,
+            candidates: self.candidate_translates(min, min + DVec2::splat(size)),
+        }
+    }
+
     /// ∫ over the box of m(x) dx: the summed area of the box's overlaps with all translates.
     /// Translates containing the box add its area; the O(perimeter) others are clipped
     /// (Sutherland–Hodgman, box by parallelogram).
@@ -453,39 +500,73 @@ mod tests {
         count
     }
 
-    #[test]
-    fn multiplicity_matches_brute_force() {
-        let footprints = [
-            Footprint::new(
-                DVec2::new(0.3, 0.4),
-                DVec2::new(0.01, 0.002),
-                DVec2::new(-0.003, 0.02),
-            )
-            .unwrap(),
-            Footprint::new(
-                DVec2::new(0.99, 0.01),
-                DVec2::new(0.3, 0.1),
-                DVec2::new(0.05, 0.4),
-            )
-            .unwrap(),
-            Footprint::new(
-                DVec2::new(5.5, -3.2),
-                DVec2::new(7.3, 2.1),
-                DVec2::new(-1.7, 6.2),
-            )
-            .unwrap(),
-        ];
-        let mut state = 1u64;
-        let mut uniform = || {
+    /// Small (the leaves' case, one at a texture corner), a few tiles, and many tiles.
+    fn sample_footprints() -> [Footprint; 4] {
+        let footprint = |c: [f64; 2], dx: [f64; 2], dy: [f64; 2]| {
+            Footprint::new(DVec2::from(c), DVec2::from(dx), DVec2::from(dy)).unwrap()
+        };
+        [
+            footprint([0.3, 0.4], [0.001, 0.0002], [-0.0003, 0.002]),
+            footprint([0.999, 0.0005], [0.003, 0.001], [0.0005, 0.004]),
+            footprint([0.99, 0.01], [0.3, 0.1], [0.05, 0.4]),
+            footprint([5.5, -3.2], [7.3, 2.1], [-1.7, 6.2]),
+        ]
+    }
+
+    /// A reproducible source of uniforms in [0, 1).
+    fn uniforms(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
             state = crate::node::mix64(state.wrapping_add(0x9E37_79B9_7F4A_7C15));
             (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        for f in &footprints {
+        }
+    }
+
+    #[test]
+    fn multiplicity_matches_brute_force() {
+        let mut uniform = uniforms(1);
+        for f in &sample_footprints() {
             for _ in 0..2000 {
                 let x = DVec2::new(uniform(), uniform());
                 assert_eq!(f.multiplicity(x), brute_multiplicity(f, x), "{f:?} {x}");
             }
         }
+    }
+
+    #[test]
+    fn a_box_gives_its_points_their_own_multiplicity() {
+        // Boxes from the unit square to 2⁻²⁰, their corners among the points.
+        let footprints = sample_footprints();
+        let mut uniform = uniforms(7);
+        let mut nonzero = 0;
+        for f in &footprints {
+            for level in [0, 3, 8, 12, 20] {
+                let size = 0.5_f64.powi(level);
+                for _ in 0..400 {
+                    // A box near the footprint's centre half the time.
+                    let near = f.center() + DVec2::new(uniform() - 0.5, uniform() - 0.5) * 0.01;
+                    let anywhere = DVec2::new(uniform(), uniform());
+                    let corner = if uniform() < 0.5 { near } else { anywhere };
+                    let min = (corner / size)
+                        .floor()
+                        .clamp(DVec2::ZERO, DVec2::splat(1.0 / size - 1.0))
+                        * size;
+                    let in_box = f.multiplicity_in_box(min, size);
+                    for k in 0..8 {
+                        let (u, v) = match k {
+                            0 => (0.0, 0.0),
+                            1 => (1.0 - f64::EPSILON, 1.0 - f64::EPSILON),
+                            _ => (uniform(), uniform()),
+                        };
+                        let x = min + size * DVec2::new(u, v);
+                        let m = f.multiplicity(x);
+                        assert_eq!(in_box.at(x), m, "{f:?} box {min} {size} at {x}");
+                        nonzero += usize::from(m > 0);
+                    }
+                }
+            }
+        }
+        assert!(nonzero > 2000, "{nonzero} points with m > 0");
     }
 
     #[test]

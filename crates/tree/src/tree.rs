@@ -729,6 +729,7 @@ impl CountTree {
         // footprint holds it.
         in_footprint.clear();
         let rounds = self.config.tea_rounds;
+        let multiplicity_at = footprint.multiplicity_in_box(node.box_min, box_size);
         for first in (0..node.count).step_by(4) {
             let purposes: [u32; 4] =
                 std::array::from_fn(|i| PURPOSE_LEAF + (first as u32) + i as u32);
@@ -737,7 +738,7 @@ impl CountTree {
             for lane in 0..(node.count - first).min(4) as usize {
                 let position =
                     node.box_min + box_size * DVec2::new(unit_f64(xs[lane]), unit_f64(ys[lane]));
-                let multiplicity = footprint.multiplicity(position);
+                let multiplicity = multiplicity_at.at(position);
                 if multiplicity == 0 {
                     continue;
                 }
