@@ -225,11 +225,13 @@ impl SphericalConic {
             FrameVertex::new(self, c),
         ];
         let k = self.scaled_coefficients();
-        let q_edge = [
-            scaled_bilinear(k, v[0].f, v[1].f),
-            scaled_bilinear(k, v[1].f, v[2].f),
-            scaled_bilinear(k, v[2].f, v[0].f),
-        ];
+        let q_edge = || {
+            [
+                scaled_bilinear(k, v[0].f, v[1].f),
+                scaled_bilinear(k, v[1].f, v[2].f),
+                scaled_bilinear(k, v[2].f, v[0].f),
+            ]
+        };
         let edge_margin = |i: usize, j: usize| {
             4.0 * FORM_MARGIN * (v[i].form_scale + v[j].form_scale) * (v[i].norm1 + v[j].norm1)
         };
@@ -237,12 +239,16 @@ impl SphericalConic {
         match self.kind() {
             ConicKind::Elliptic => {
                 // E⁺ = {q < 0, z > 0}: convex.
-                if in_upper_hemisphere
-                    && v.iter()
-                        .all(|x| x.q < -x.form_margin() && x.f.z > x.linear_margin())
-                {
+                let inside = v.map(|x| x.q < -x.form_margin() && x.f.z > x.linear_margin());
+                if in_upper_hemisphere && inside.iter().all(|&i| i) {
                     return Classification::TriangleInsideConic;
                 }
+                // A vertex inside E⁺, the triangle not: partial. (The edge test below says the
+                // same: the edge from that vertex has q(2a) = 4q(a) < 0 at its end t = 1.)
+                if inside.iter().any(|&i| i) {
+                    return Classification::Partial;
+                }
+                let q_edge = q_edge();
                 let edge_meets_cap = |i: usize| {
                     let (p, r) = (&v[i], &v[(i + 1) % 3]);
                     let side_margin = p.linear_margin() + r.linear_margin();
@@ -273,6 +279,7 @@ impl SphericalConic {
                 if !in_upper_hemisphere || (0..3).any(|i| facing[i] <= v[i].linear_margin()) {
                     return Classification::Partial;
                 }
+                let q_edge = q_edge();
                 let edge_meets_cap = |i: usize| {
                     let (p, r) = (&v[i], &v[(i + 1) % 3]);
                     let side_margin = p.linear_margin() + r.linear_margin();
