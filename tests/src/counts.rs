@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use glam::{DVec2, DVec3};
 use glint_sphere::SphericalConic;
-use glint_tree::sampling::{MultinomialMode, multinomial4};
+use glint_tree::sampling::{MultinomialMode, multinomial4, multinomial4_equal};
 use glint_tree::tea::TeaRng;
 use glint_tree::{CountTree, CountTreeConfig, Footprint, NormalDensity, QueryScratch};
 use statrs::distribution::{ChiSquared, ContinuousCDF, Discrete};
@@ -158,12 +158,33 @@ pub fn multinomial_chi_square(
     draws: usize,
     seed: u32,
 ) -> f64 {
+    split_chi_square(n, p, draws, seed, |rng| multinomial4(n, p, mode, rng))
+}
+
+/// [`multinomial_chi_square`] for the tree's spatial split, [`multinomial4_equal`] (four
+/// equally likely children, drawn two bits per particle up to 128 particles in exact mode).
+#[must_use]
+pub fn equal_split_chi_square(n: u64, mode: MultinomialMode, draws: usize, seed: u32) -> f64 {
+    split_chi_square(n, [0.25; 4], draws, seed, |rng| {
+        multinomial4_equal(n, mode, rng)
+    })
+}
+
+/// The test of [`multinomial_chi_square`] for any sampler `split` of `n` with probabilities `p`.
+fn split_chi_square(
+    n: u64,
+    p: [f64; 4],
+    draws: usize,
+    seed: u32,
+    split: impl Fn(&mut TeaRng) -> [u64; 4],
+) -> f64 {
     let mut jitter = SplitMix64::new(u64::from(seed) ^ 0xC41);
     let bins = 20;
     let mut observed = vec![0.0; bins];
     for i in 0..draws {
         let mut rng = TeaRng::new([seed, i as u32, 0x5EED, 7], 0, 8);
-        let x = multinomial4(n, p, mode, &mut rng);
+        let x = split(&mut rng);
+        assert_eq!(x.iter().sum::<u64>(), n, "a split of {n} into {x:?}");
         let mut remaining = n;
         for component in 0..3 {
             let rest: f64 = p[component..].iter().sum();

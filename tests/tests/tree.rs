@@ -8,7 +8,8 @@ use glint_sphere::SphericalConic;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{
     beckmann_tree, conic_integral_by_sampling, correlation, count_moment_errors,
-    counts_over_footprints, mean_and_variance, multinomial_chi_square, overlapping_pair_counts,
+    counts_over_footprints, equal_split_chi_square, mean_and_variance, multinomial_chi_square,
+    overlapping_pair_counts,
 };
 use glint_tests::geometry::direction;
 use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
@@ -205,6 +206,41 @@ fn multinomial_splits_pass_chi_square() {
                     "normal approximation n = {n}, p = {p:?}: p-value {normal}"
                 );
             }
+        }
+    }
+}
+
+/// The spatial split (four equal quarters, two random bits per particle up to 128 particles in
+/// exact mode, conditional binomials beyond) against the exact multinomial, on both sides of
+/// each switch point.
+#[test]
+fn equal_splits_pass_chi_square() {
+    for n in [
+        1u64,
+        2,
+        5,
+        8,
+        9,
+        31,
+        32,
+        33,
+        64,
+        100,
+        127,
+        128,
+        129,
+        1000,
+        1_000_000_000,
+    ] {
+        let seed = (n as u32).wrapping_mul(131).wrapping_add(17);
+        let exact = equal_split_chi_square(n, MultinomialMode::Exact, 2000, seed);
+        assert!(exact > 1e-4, "exact equal split n = {n}: p-value {exact}");
+        if n <= 8 || n >= 10_000 {
+            let normal = equal_split_chi_square(n, MultinomialMode::Normal, 2000, seed);
+            assert!(
+                normal > 1e-4,
+                "normal-mode equal split n = {n}: p-value {normal}"
+            );
         }
     }
 }

@@ -7,8 +7,8 @@ use glam::DVec2;
 use glint_sphere::SphericalConic;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{
-    beckmann_density, conic_integral_by_sampling, correlation, ggx_density, mean_and_variance,
-    multinomial_chi_square, overlapping_pair_counts,
+    beckmann_density, conic_integral_by_sampling, correlation, equal_split_chi_square, ggx_density,
+    mean_and_variance, multinomial_chi_square, overlapping_pair_counts,
 };
 use glint_tests::geometry::direction;
 use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
@@ -125,7 +125,10 @@ pub(crate) fn multinomial_splits(quick: bool, report: &mut String) -> anyhow::Re
     let draws = if quick { 2000 } else { 20_000 };
     let sizes = [1u64, 2, 5, 8, 9, 20, 100, 10_000, 1_000_000_000];
     let probabilities = [[0.25; 4], [0.1, 0.2, 0.3, 0.4], [0.7, 0.01, 0.09, 0.2]];
-    let tests = sizes.len() * probabilities.len();
+    // The spatial split's own sampler (two bits per particle up to 128 particles) at these
+    // sizes besides the others.
+    let equal_sizes = [9u64, 33, 64, 100, 128, 129, 10_000];
+    let tests = sizes.len() * probabilities.len() + equal_sizes.len();
     // Šidák: family-wise 1% over the exact mode's tests.
     let threshold = 1.0 - 0.99_f64.powf(1.0 / tests as f64);
     writeln!(
@@ -151,6 +154,21 @@ pub(crate) fn multinomial_splits(quick: bool, report: &mut String) -> anyhow::Re
             }
             writeln!(report, "| {n} | {p:?} | {exact:.3} | {normal:.3} |")?;
         }
+    }
+    for &n in &equal_sizes {
+        let seed = (n as u32).wrapping_mul(977).wrapping_add(5);
+        let exact = equal_split_chi_square(n, MultinomialMode::Exact, draws, seed);
+        let normal = equal_split_chi_square(n, MultinomialMode::Normal, draws, seed);
+        if exact < threshold {
+            failures += 1;
+        }
+        if normal < threshold {
+            normal_rejections.push(format!("n = {n}, spatial split"));
+        }
+        writeln!(
+            report,
+            "| {n} | spatial split (¼ each, by bits) | {exact:.3} | {normal:.3} |"
+        )?;
     }
     writeln!(
         report,

@@ -18,6 +18,13 @@
 //! is exactly that Gaussian), rounded to non-negative integers, then fixed up by adding or
 //! removing single particles in component i with probability pᵢ until the sum is n.
 //! Both modes return counts that sum to n, always.
+//!
+//! # Spatial splits
+//! A box splits into four equal quarters, each particle equally likely in each:
+//! [`multinomial4_equal`] gives each particle two random bits (32 particles per 64-bit draw),
+//! the exact multinomial at a fraction of three binomials' cost, up to
+//! [`EQUAL_SPLIT_BY_BITS`] particles (exact mode; 8 in normal mode), and hands larger splits to
+//! [`multinomial4`].
 
 use crate::tea::TeaRng;
 
@@ -235,6 +242,46 @@ pub fn multinomial4(n: u64, p: [f64; 4], mode: MultinomialMode, rng: &mut TeaRng
     }
 }
 
+/// The largest split that [`multinomial4_equal`] draws two bits per particle for in
+/// [`MultinomialMode::Exact`]: four 64-bit draws, one 4-lane TEA call.
+pub const EQUAL_SPLIT_BY_BITS: u64 = 128;
+
+/// Splits `n` particles among four equally likely children (a spatial split of a box into its
+/// quarters). Each particle's child is two random bits, 32 particles per 64-bit draw: the
+/// exact multinomial, for n ≤ [`EQUAL_SPLIT_BY_BITS`] in [`MultinomialMode::Exact`] and n ≤ 8
+/// in [`MultinomialMode::Normal`] (the paper draws particles one by one up to 8). Larger n go
+/// to [`multinomial4`] with p = ¼. The result always sums to `n`.
+pub fn multinomial4_equal(n: u64, mode: MultinomialMode, rng: &mut TeaRng) -> [u64; 4] {
+    let by_bits = match mode {
+        MultinomialMode::Exact => EQUAL_SPLIT_BY_BITS,
+        MultinomialMode::Normal => 8,
+    };
+    if n > by_bits {
+        return multinomial4(n, [0.25; 4], mode, rng);
+    }
+    // Particle i of a draw takes bits 2i (low) and 2i + 1 (high): child low + 2·high.
+    const PAIR_LOW_BITS: u64 = 0x5555_5555_5555_5555;
+    let mut counts = [0u64; 4];
+    let mut remaining = n;
+    while remaining > 0 {
+        let particles = remaining.min(32);
+        let used = if particles == 32 {
+            PAIR_LOW_BITS
+        } else {
+            PAIR_LOW_BITS & ((1u64 << (2 * particles)) - 1)
+        };
+        let bits = rng.next_bits();
+        let low = bits & used;
+        let high = (bits >> 1) & used;
+        counts[1] += u64::from((low & !high).count_ones());
+        counts[2] += u64::from((high & !low).count_ones());
+        counts[3] += u64::from((low & high).count_ones());
+        remaining -= particles;
+    }
+    counts[0] = n - counts[1] - counts[2] - counts[3];
+    counts
+}
+
 /// Exact: X₀ ~ Bin(n, p₀), X₁ ~ Bin(n − X₀, p₁/(p₁+p₂+p₃)), X₂ likewise, X₃ the rest.
 fn multinomial4_conditional(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 4] {
     let mut counts = [0u64; 4];
@@ -421,6 +468,52 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn equal_splits_sum_to_n_and_hand_large_ones_on() {
+        for mode in [MultinomialMode::Exact, MultinomialMode::Normal] {
+            for n in [
+                0u64,
+                1,
+                7,
+                8,
+                9,
+                31,
+                32,
+                33,
+                64,
+                127,
+                128,
+                129,
+                1000,
+                1 << 40,
+            ] {
+                for trial in 0..20 {
+                    let counts = multinomial4_equal(n, mode, &mut rng(trial));
+                    assert_eq!(counts.iter().sum::<u64>(), n, "{mode:?} n = {n}");
+                    let by_bits = match mode {
+                        MultinomialMode::Exact => EQUAL_SPLIT_BY_BITS,
+                        MultinomialMode::Normal => 8,
+                    };
+                    if n > by_bits {
+                        let general = multinomial4(n, [0.25; 4], mode, &mut rng(trial));
+                        assert_eq!(counts, general, "{mode:?} n = {n}");
+                    }
+                }
+            }
+        }
+        // Every child gets particles: the bit pairs are not stuck.
+        let totals = (0..200).fold([0u64; 4], |mut totals, trial| {
+            let counts = multinomial4_equal(100, MultinomialMode::Exact, &mut rng(trial));
+            for (total, count) in totals.iter_mut().zip(counts) {
+                *total += count;
+            }
+            totals
+        });
+        for total in totals {
+            assert!((4500..5500).contains(&total), "{totals:?}");
         }
     }
 

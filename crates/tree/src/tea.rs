@@ -77,6 +77,18 @@ pub fn unit_f64(bits: u64) -> f64 {
     (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
+/// Maps 64 random bits to two uniform numbers in [0, 1), 32 bits each (high half first): a
+/// point of a 2³²×2³² grid, for a leaf particle's position in its box.
+#[inline]
+#[must_use]
+pub fn unit_pair(bits: u64) -> [f64; 2] {
+    let scale = 1.0 / (1u64 << 32) as f64;
+    [
+        (bits >> 32) as f64 * scale,
+        (bits & 0xFFFF_FFFF) as f64 * scale,
+    ]
+}
+
 /// A counter-mode TEA stream: draw i is `encrypt(i, purpose, key)`. Draws are computed four at
 /// a time by [`encrypt_x4`] (one 4-lane call costs about 1.3 scalar ones) and handed out in
 /// order, so the stream is the same as one scalar call per draw.
@@ -193,6 +205,14 @@ mod tests {
     fn full_tea_matches_the_published_test_vector() {
         // 32 cycles, zero key, zero block: the reference implementation's output.
         assert_eq!(encrypt(0, 0, [0; 4], 32), (0x41EA_3A0A, 0x94BA_A940));
+    }
+
+    #[test]
+    fn unit_pairs_take_the_two_halves() {
+        assert_eq!(unit_pair(0), [0.0, 0.0]);
+        assert_eq!(unit_pair(u64::MAX), [1.0 - 0.5f64.powi(32); 2]);
+        assert_eq!(unit_pair(1 << 63), [0.5, 0.0]);
+        assert_eq!(unit_pair(1 << 31), [0.0, 0.5]);
     }
 
     #[test]

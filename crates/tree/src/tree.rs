@@ -45,8 +45,8 @@ use crate::ndf::{
     QuadratureTolerance,
 };
 use crate::node::NodeId;
-use crate::sampling::{MultinomialMode, dirichlet4, exponential, multinomial4};
-use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, unit_f64};
+use crate::sampling::{MultinomialMode, dirichlet4, exponential, multinomial4, multinomial4_equal};
+use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, unit_pair};
 
 /// Nodes with at most this many particles place them explicitly (leaves). A leaf costs one
 /// visit and about 10 ns per particle (two 4-lane TEA calls per four positions, the normal only
@@ -393,15 +393,17 @@ impl CountTree {
     /// children in every query.
     fn emit_children(&self, node: &Node, mut emit: impl FnMut(Node)) -> bool {
         let spatial = self.splits_in_space(node);
-        let (cells, solid_angles, probabilities) = if spatial {
-            ([node.cell; 4], [node.solid_angle; 4], [0.25; 4])
+        let mut rng = self.stream(node.id, PURPOSE_SPLIT);
+        let mode = self.config.multinomial;
+        let (cells, solid_angles, counts) = if spatial {
+            let counts = multinomial4_equal(node.count, mode, &mut rng);
+            ([node.cell; 4], [node.solid_angle; 4], counts)
         } else {
             self.with_directional_split(&node.cell, |split| {
-                (split.children, split.solid_angles, split.probabilities)
+                let counts = multinomial4(node.count, split.probabilities, mode, &mut rng);
+                (split.children, split.solid_angles, counts)
             })
         };
-        let mut rng = self.stream(node.id, PURPOSE_SPLIT);
-        let counts = multinomial4(node.count, probabilities, self.config.multinomial, &mut rng);
         let mut areas = [[0.0; 3]; 4];
         for channel in 0..self.config.colour_channels {
             let mut rng = self.stream(node.id, PURPOSE_AREA + channel as u32);
@@ -713,36 +715,32 @@ impl CountTree {
         // Each particle's share of the node's area, per channel: Dirichlet(1, …, 1) as
         // normalized exponentials (all particles' draws are needed for the normalization).
         let key = node.id.key(self.config.seed);
-        let stream = |k: u64| TeaRng::new(key, PURPOSE_LEAF + k as u32, self.config.tea_rounds);
+        let rounds = self.config.tea_rounds;
         let mut exponential_sums = [0.0; 3];
         if channels > 0 {
             for k in 0..node.count {
-                let mut rng = stream(k);
-                let _ = (rng.uniform(), rng.uniform());
+                let mut rng = TeaRng::starting_at(key, PURPOSE_LEAF + k as u32, rounds, 1);
                 for sum in exponential_sums.iter_mut().take(channels) {
                     *sum += exponential(&mut rng);
                 }
             }
         }
-        // Particle k's position is draws 0 and 1 of its stream: four particles' positions take
-        // two 4-lane TEA calls. Its later draws (areas, then its normal) are drawn only if the
-        // footprint holds it.
+        // Particle k's position is draw 0 of its stream (x from its high 32 bits, y from its
+        // low ones): four particles' positions take one 4-lane TEA call. Its later draws (areas,
+        // then its normal) are drawn only if the footprint holds it.
         in_footprint.clear();
-        let rounds = self.config.tea_rounds;
         let multiplicity_at = footprint.multiplicity_in_box(node.box_min, box_size);
         for first in (0..node.count).step_by(4) {
             let purposes: [u32; 4] =
                 std::array::from_fn(|i| PURPOSE_LEAF + (first as u32) + i as u32);
-            let xs = draws_x4(key, purposes, 0, rounds);
-            let ys = draws_x4(key, purposes, 1, rounds);
+            let draws = draws_x4(key, purposes, 0, rounds);
             for lane in 0..(node.count - first).min(4) as usize {
-                let position =
-                    node.box_min + box_size * DVec2::new(unit_f64(xs[lane]), unit_f64(ys[lane]));
+                let position = node.box_min + box_size * DVec2::from(unit_pair(draws[lane]));
                 let multiplicity = multiplicity_at.at(position);
                 if multiplicity == 0 {
                     continue;
                 }
-                let mut rng = TeaRng::starting_at(key, purposes[lane], rounds, 2);
+                let mut rng = TeaRng::starting_at(key, purposes[lane], rounds, 1);
                 let mut shares = [0.0; 3];
                 for share in shares.iter_mut().take(channels) {
                     *share = exponential(&mut rng);
