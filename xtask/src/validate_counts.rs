@@ -167,7 +167,7 @@ pub(crate) fn multinomial_splits(quick: bool, report: &mut String) -> anyhow::Re
         }
         writeln!(
             report,
-            "| {n} | spatial split (¼ each, by bits) | {exact:.3} | {normal:.3} |"
+            "| {n} | spatial split (¼ each) | {exact:.3} | {normal:.3} |"
         )?;
     }
     writeln!(

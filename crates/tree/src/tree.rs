@@ -393,16 +393,19 @@ impl CountTree {
     /// children in every query.
     fn emit_children(&self, node: &Node, mut emit: impl FnMut(Node)) -> bool {
         let spatial = self.splits_in_space(node);
-        let mut rng = self.stream(node.id, PURPOSE_SPLIT);
-        let mode = self.config.multinomial;
-        let (cells, solid_angles, counts) = if spatial {
-            let counts = multinomial4_equal(node.count, mode, &mut rng);
-            ([node.cell; 4], [node.solid_angle; 4], counts)
+        let (cells, solid_angles, probabilities) = if spatial {
+            ([node.cell; 4], [node.solid_angle; 4], [0.25; 4])
         } else {
             self.with_directional_split(&node.cell, |split| {
-                let counts = multinomial4(node.count, split.probabilities, mode, &mut rng);
-                (split.children, split.solid_angles, counts)
+                (split.children, split.solid_angles, split.probabilities)
             })
+        };
+        let mut rng = self.stream(node.id, PURPOSE_SPLIT);
+        let mode = self.config.multinomial;
+        let counts = if spatial {
+            multinomial4_equal(node.count, mode, &mut rng)
+        } else {
+            multinomial4(node.count, probabilities, mode, &mut rng)
         };
         let mut areas = [[0.0; 3]; 4];
         for channel in 0..self.config.colour_channels {
