@@ -177,6 +177,10 @@ fn axis_in_triangle(v: &[FrameVertex; 3], axis: usize) -> Option<bool> {
 /// (their rounding errors are ~1e-15).
 const CAP_MARGIN: f64 = 1e-10;
 
+/// Absolute slack of [`SphericalConic::bounding_cap_against_edges`] on ẑ·(p × q), a hundred
+/// times the rounding error of the cross product of unit vectors.
+const EDGE_PLANE_MARGIN: f64 = 1e-13;
+
 impl SphericalConic {
     /// Whether the triangle's bounding cap and the elliptic conic's (centred on ẑ) are apart,
     /// so the two are disjoint: a quick answer for the commonest case (three of a split's four
@@ -207,6 +211,35 @@ impl SphericalConic {
         }
         let u_sin_r = u_sin_r_squared.sqrt();
         u.dot(axis) < u_cos_r * cos_max - u_sin_r * sin_max - CAP_MARGIN
+    }
+
+    /// The elliptic conic's bounding cap (axis ẑ, radius θ_max) against the great circles of
+    /// the triangle's edges, from the vertices in the conic's frame: beyond one of them, the
+    /// conic and the triangle are disjoint; within all three, the conic lies inside the
+    /// triangle. This settles a triangle whose vertices are all outside the conic without the
+    /// edge extrema and the axis test (the common case of a cell larger than a small conic).
+    /// With the vertices counter-clockwise, e = p × q points into the triangle and
+    /// ẑ·e = |e|·sin δ, δ the signed angle of ẑ from the edge's great circle; the cap lies
+    /// beyond it when δ < −θ_max and within it when δ > θ_max (both angles are below π/2,
+    /// where sin increases). The components of e carry an absolute rounding error of a few
+    /// 1e-16 (unit vertices, rotated into the frame) whatever |e| is, hence the absolute part
+    /// of the margin.
+    fn bounding_cap_against_edges(&self, v: &[FrameVertex; 3]) -> Option<Classification> {
+        let (_, _, sin_max) = self.bounding_cap()?;
+        let mut cap_inside = true;
+        for i in 0..3 {
+            // In the conic's frame ẑ is the axis: ẑ·e is the z component of e.
+            let edge_normal = v[i].f.cross(v[(i + 1) % 3].f);
+            let length = edge_normal.length();
+            let reach = sin_max * length;
+            let margin = EDGE_PLANE_MARGIN + CAP_MARGIN * length;
+            let distance = edge_normal.z;
+            if distance < -reach - margin {
+                return Some(Classification::Disjoint);
+            }
+            cap_inside &= distance > reach + margin;
+        }
+        cap_inside.then_some(Classification::ConicInsideTriangle)
     }
 
     /// Classifies `triangle` against this conic's valid set (see the module docs). The answers
@@ -247,6 +280,9 @@ impl SphericalConic {
                 // same: the edge from that vertex has q(2a) = 4q(a) < 0 at its end t = 1.)
                 if inside.iter().any(|&i| i) {
                     return Classification::Partial;
+                }
+                if let Some(answer) = self.bounding_cap_against_edges(&v) {
+                    return answer;
                 }
                 let q_edge = q_edge();
                 let edge_meets_cap = |i: usize| {
