@@ -1,9 +1,9 @@
 //! Per-query costs of glint-tree at the paper's Table 1 settings (ε = 0.1, pixel footprints,
-//! directions near the highlight), plus TEA and the multinomial split.
+//! directions near the highlight), plus TEA, the multinomial split and the spatial split.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glint_benches::{TABLE1, table1_workload};
-use glint_tree::sampling::{MultinomialMode, multinomial4};
+use glint_tree::sampling::{MultinomialMode, multinomial4, multinomial4_equal_by_bits};
 use glint_tree::tea::{DEFAULT_ROUNDS, TeaRng, encrypt, encrypt_x4};
 use glint_tree::{MultinomialMode as Mode, QueryScratch};
 use std::hint::black_box;
@@ -55,6 +55,25 @@ fn tree(c: &mut Criterion) {
                 })
             });
         }
+    }
+    // The spatial split: two bits per particle up to EQUAL_SPLIT_BY_BITS, against the
+    // conditional binomials it replaces there.
+    for n in [128u64, 384, 512] {
+        let mut k = 0u32;
+        group.bench_function(format!("equal_split_bits_n{n}"), |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                let mut rng = TeaRng::new([k, 2, 3, 4], 0, DEFAULT_ROUNDS);
+                multinomial4_equal_by_bits(black_box(n), &mut rng)
+            })
+        });
+        group.bench_function(format!("equal_split_binomials_n{n}"), |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                let mut rng = TeaRng::new([k, 2, 3, 4], 0, DEFAULT_ROUNDS);
+                multinomial4(black_box(n), [0.25; 4], MultinomialMode::Exact, &mut rng)
+            })
+        });
     }
     group.finish();
 }

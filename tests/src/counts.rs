@@ -162,7 +162,7 @@ pub fn multinomial_chi_square(
 }
 
 /// [`multinomial_chi_square`] for the tree's spatial split, [`multinomial4_equal`] (four
-/// equally likely children, drawn two bits per particle up to 128 particles in exact mode).
+/// equally likely children, drawn two bits per particle up to 384 particles in exact mode).
 #[must_use]
 pub fn equal_split_chi_square(n: u64, mode: MultinomialMode, draws: usize, seed: u32) -> f64 {
     split_chi_square(n, [0.25; 4], draws, seed, |rng| {

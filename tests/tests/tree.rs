@@ -210,7 +210,7 @@ fn multinomial_splits_pass_chi_square() {
     }
 }
 
-/// The spatial split (four equal quarters, two random bits per particle up to 128 particles in
+/// The spatial split (four equal quarters, two random bits per particle up to 384 particles in
 /// exact mode, conditional binomials beyond) against the exact multinomial, on both sides of
 /// each switch point.
 #[test]

@@ -30,7 +30,7 @@ const SPHERE_BENCHMARKS: [(&str, &str); 7] = [
 ];
 
 /// The tree's primitive benchmarks.
-const TREE_BENCHMARKS: [(&str, &str); 8] = [
+const TREE_BENCHMARKS: [(&str, &str); 14] = [
     ("tea_scalar_8_rounds", "TEA, one 64-bit block, 8 cycles"),
     (
         "tea_x4_8_rounds",
@@ -53,6 +53,30 @@ const TREE_BENCHMARKS: [(&str, &str); 8] = [
     (
         "multinomial_normal_n1000000000",
         "4-way split, normal approximation, n = 10⁹",
+    ),
+    (
+        "equal_split_bits_n128",
+        "spatial split, two bits per particle, n = 128",
+    ),
+    (
+        "equal_split_binomials_n128",
+        "spatial split as conditional binomials, n = 128",
+    ),
+    (
+        "equal_split_bits_n384",
+        "spatial split, two bits per particle, n = 384 (the switch point)",
+    ),
+    (
+        "equal_split_binomials_n384",
+        "spatial split as conditional binomials, n = 384",
+    ),
+    (
+        "equal_split_bits_n512",
+        "spatial split, two bits per particle, n = 512",
+    ),
+    (
+        "equal_split_binomials_n512",
+        "spatial split as conditional binomials, n = 512",
     ),
 ];
 

@@ -125,9 +125,9 @@ pub(crate) fn multinomial_splits(quick: bool, report: &mut String) -> anyhow::Re
     let draws = if quick { 2000 } else { 20_000 };
     let sizes = [1u64, 2, 5, 8, 9, 20, 100, 10_000, 1_000_000_000];
     let probabilities = [[0.25; 4], [0.1, 0.2, 0.3, 0.4], [0.7, 0.01, 0.09, 0.2]];
-    // The spatial split's own sampler (two bits per particle up to 128 particles) at these
+    // The spatial split's own sampler (two bits per particle up to 384 particles) at these
     // sizes besides the others.
-    let equal_sizes = [9u64, 33, 64, 100, 128, 129, 10_000];
+    let equal_sizes = [9u64, 33, 100, 128, 384, 385, 10_000];
     let tests = sizes.len() * probabilities.len() + equal_sizes.len();
     // Šidák: family-wise 1% over the exact mode's tests.
     let threshold = 1.0 - 0.99_f64.powf(1.0 / tests as f64);
