@@ -235,7 +235,7 @@ pub struct QueryScratch {
     next_queue: Vec<QueuedNode>,
     cells: Vec<DirectionalCell>,
     in_footprint: Vec<LeafParticle>,
-    memo: ClassificationMemo,
+    memo: QueryMemo,
 }
 
 impl QueryScratch {
@@ -447,7 +447,7 @@ impl CountTree {
         parent: &QueuedNode,
         footprint: &Footprint,
         conic: &SphericalConic,
-        memo: &mut ClassificationMemo,
+        memo: &mut QueryMemo,
         queue: &mut Vec<QueuedNode>,
     ) -> u32 {
         let mut tested = 0;
@@ -460,7 +460,7 @@ impl CountTree {
                 ..*parent
             };
             if spatial {
-                queued.spatial = footprint.overlap_box(child.box_min, child.box_size());
+                queued.spatial = memo.overlap_box(child, footprint);
             } else {
                 queued.directional = memo.classify(&child.cell, conic);
             }
@@ -715,7 +715,7 @@ impl CountTree {
         directional: Classification,
         footprint: &Footprint,
         conic: &SphericalConic,
-        memo: &mut ClassificationMemo,
+        memo: &mut QueryMemo,
         in_footprint: &mut Vec<LeafParticle>,
     ) -> (f64, [f64; 3]) {
         let box_size = node.box_size();
@@ -950,7 +950,7 @@ impl CountTree {
         cell: &DirectionalCell,
         classification: Classification,
         conic: &SphericalConic,
-        memo: &mut ClassificationMemo,
+        memo: &mut QueryMemo,
         particles: &mut [LeafParticle],
         members: u64,
     ) -> u64 {
@@ -1009,43 +1009,74 @@ fn members(mut bits: u64) -> impl Iterator<Item = usize> {
     })
 }
 
-/// The conic's classifications of directional cells during one query, memoized: the leaves
-/// of different boxes and the directional splits of different boxes share one directional
-/// hierarchy, so a query meets the same cells again (a third of the classifications of the
-/// glass Table 1 workload, a fifth of the dense one's). Direct-mapped by label; a generation
+/// Answers that recur within one query, memoized. The leaves and directional splits of
+/// different boxes share one directional hierarchy, and the spatial splits of different cells
+/// one hierarchy of boxes, so a query meets the same cells and boxes again: on the glass
+/// Table 1 workload a third of its conic classifications and two thirds of its box overlaps
+/// repeat, on the dense one a fifth and a third. Both tables are direct-mapped; a generation
 /// count tells this query's entries from earlier ones', so a query starts without clearing.
 #[derive(Debug, Default)]
-struct ClassificationMemo {
-    entries: Vec<MemoEntry>,
+struct QueryMemo {
+    classifications: Vec<ClassificationEntry>,
+    boxes: Vec<BoxEntry>,
     generation: u32,
 }
 
+/// A cell's label and how the query's conic meets the cell.
 #[derive(Clone, Copy, Debug)]
-struct MemoEntry {
+struct ClassificationEntry {
     label: u64,
     generation: u32,
     answer: Classification,
 }
 
-/// log₂ of the memo's entries (512, 8 KB).
-const MEMO_BITS: u32 = 9;
+/// A box (its corner's bits and its level) and how the query's footprint meets it.
+#[derive(Clone, Copy, Debug)]
+struct BoxEntry {
+    corner: [u64; 2],
+    level: u32,
+    generation: u32,
+    answer: BoxOverlap,
+}
 
-impl ClassificationMemo {
-    const EMPTY: MemoEntry = MemoEntry {
+/// log₂ of the entries of the classification table (512, 8 KB) and the box table (256,
+/// 10 KB).
+const CLASSIFICATION_MEMO_BITS: u32 = 9;
+const BOX_MEMO_BITS: u32 = 8;
+
+/// The slot of a 64-bit key in a table of 2^`bits` entries (Fibonacci hashing).
+#[inline]
+fn memo_slot(key: u64, bits: u32) -> usize {
+    (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize
+}
+
+impl QueryMemo {
+    const NO_CLASSIFICATION: ClassificationEntry = ClassificationEntry {
         label: 0,
         generation: 0,
         answer: Classification::Partial,
     };
+    const NO_BOX: BoxEntry = BoxEntry {
+        corner: [0; 2],
+        level: 0,
+        generation: 0,
+        answer: BoxOverlap {
+            inside: 0,
+            partial: 0,
+        },
+    };
 
-    /// Forgets the previous query's answers (allocates the entries on first use).
+    /// Forgets the previous query's answers (allocates the tables on first use).
     fn begin_query(&mut self) {
-        if self.entries.is_empty() {
-            self.entries = vec![Self::EMPTY; 1 << MEMO_BITS];
+        if self.classifications.is_empty() {
+            self.classifications = vec![Self::NO_CLASSIFICATION; 1 << CLASSIFICATION_MEMO_BITS];
+            self.boxes = vec![Self::NO_BOX; 1 << BOX_MEMO_BITS];
         }
         self.generation = self.generation.wrapping_add(1);
         if self.generation == 0 {
             // After 2³² queries: entries of generation 0 are never current.
-            self.entries.fill(Self::EMPTY);
+            self.classifications.fill(Self::NO_CLASSIFICATION);
+            self.boxes.fill(Self::NO_BOX);
             self.generation = 1;
         }
     }
@@ -1061,14 +1092,36 @@ impl ClassificationMemo {
         if cell.depth >= DirectionalCell::MAX_LABELLED_DEPTH {
             return conic.classify(triangle);
         }
-        let slot = (cell.label.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - MEMO_BITS)) as usize;
-        let entry = &mut self.entries[slot];
+        let entry = &mut self.classifications[memo_slot(cell.label, CLASSIFICATION_MEMO_BITS)];
         if entry.generation == self.generation && entry.label == cell.label {
             return entry.answer;
         }
         let answer = conic.classify(triangle);
-        *entry = MemoEntry {
+        *entry = ClassificationEntry {
             label: cell.label,
+            generation: self.generation,
+            answer,
+        };
+        answer
+    }
+
+    /// How the query's `footprint` meets the box of `node`: the memoized answer if this
+    /// query has tested the box before.
+    #[inline]
+    fn overlap_box(&mut self, node: &Node, footprint: &Footprint) -> BoxOverlap {
+        let corner = [node.box_min.x.to_bits(), node.box_min.y.to_bits()];
+        let key = corner[0] ^ corner[1].rotate_left(29) ^ u64::from(node.box_level);
+        let entry = &mut self.boxes[memo_slot(key, BOX_MEMO_BITS)];
+        if entry.generation == self.generation
+            && entry.corner == corner
+            && entry.level == node.box_level
+        {
+            return entry.answer;
+        }
+        let answer = footprint.overlap_box(node.box_min, node.box_size());
+        *entry = BoxEntry {
+            corner,
+            level: node.box_level,
             generation: self.generation,
             answer,
         };
@@ -1140,7 +1193,7 @@ mod tests {
             level = level.iter().flat_map(DirectionalCell::children).collect();
             cells.extend_from_slice(&level);
         }
-        let mut memo = ClassificationMemo::default();
+        let mut memo = QueryMemo::default();
         memo.begin_query();
         memo.generation = u32::MAX - 3;
         let mut answers = [0usize; 4];
@@ -1163,6 +1216,59 @@ mod tests {
     }
 
     #[test]
+    fn the_memo_answers_as_the_footprint_does_across_queries() {
+        // The 1365 boxes of levels 0 to 5 share 256 slots; each query has its own footprint
+        // (a pixel, one reaching across a texture edge, several tiles).
+        let mut boxes = Vec::new();
+        for level in 0..6u32 {
+            let side = 1u32 << level;
+            for iy in 0..side {
+                for ix in 0..side {
+                    let size = 1.0 / f64::from(side);
+                    boxes.push(Node {
+                        id: NodeId::ROOT,
+                        count: 1,
+                        box_min: DVec2::new(f64::from(ix), f64::from(iy)) * size,
+                        box_level: level,
+                        cell: DirectionalCell::HEMISPHERE,
+                        solid_angle: 1.0,
+                        depth: level,
+                        areas: [0.0; 3],
+                    });
+                }
+            }
+        }
+        let footprints = [
+            ([0.3, 0.4], [0.01, 0.002], [-0.003, 0.02]),
+            ([0.99, 0.02], [0.1, 0.03], [0.02, 0.2]),
+            ([5.5, -3.2], [2.3, 0.7], [-0.5, 1.9]),
+        ]
+        .map(|(c, dx, dy)| {
+            Footprint::new(DVec2::from(c), DVec2::from(dx), DVec2::from(dy)).expect("finite")
+        });
+        let mut memo = QueryMemo::default();
+        memo.begin_query();
+        memo.generation = u32::MAX - 2;
+        let mut resolved = [0usize; 3];
+        for query in 0..6 {
+            memo.begin_query();
+            let footprint = &footprints[query % 3];
+            for _ in 0..2 {
+                for node in &boxes {
+                    let answer = memo.overlap_box(node, footprint);
+                    assert_eq!(
+                        answer,
+                        footprint.overlap_box(node.box_min, node.box_size()),
+                        "query {query}"
+                    );
+                    resolved[usize::from(answer.inside > 0) + usize::from(answer.partial > 0)] += 1;
+                }
+            }
+        }
+        assert!(resolved.iter().all(|&n| n > 0), "{resolved:?}");
+    }
+
+    #[test]
     fn grouped_leaf_descent_is_the_descent_one_particle_at_a_time() {
         let alpha: f64 = 0.02;
         let density = Arc::new(move |m: DVec3| {
@@ -1175,7 +1281,7 @@ mod tests {
         let mut draws = TeaRng::new([1, 2, 3, 4], 0, 8);
         let (mut partial_answers, mut found) = (0, 0);
         // One memo for all trials, as one scratch serves many queries.
-        let mut memo = ClassificationMemo::default();
+        let mut memo = QueryMemo::default();
         for trial in 0..300 {
             // A cell 0–9 levels deep, towards the normal for most trials (where the table is).
             let mut cell = DirectionalCell::HEMISPHERE;
