@@ -32,6 +32,7 @@
 //! the footprint (see [`crate::footprint`]).
 
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::DVec2;
 use glint_sphere::{
@@ -151,6 +152,8 @@ pub fn expected_conic_solid_angle(gamma: f64) -> f64 {
 /// The count tree of one material.
 #[derive(Clone)]
 pub struct CountTree {
+    /// Unique to this tree (and its clones), for memos kept across queries.
+    id: u64,
     config: CountTreeConfig,
     quadrature: NdfQuadrature,
     density: Arc<NormalDensity>,
@@ -230,7 +233,9 @@ impl Node {
     }
 }
 
-/// Reusable working memory of queries: keep one per thread, and queries do not allocate.
+/// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
+/// first query allocates 66 KB of memo tables (answers that recur within a query, and split
+/// probabilities that recur across queries, of any material: one scratch serves them all).
 #[derive(Debug, Default)]
 pub struct QueryScratch {
     queue: Vec<QueuedNode>,
@@ -335,7 +340,9 @@ impl CountTree {
         let quadrature = NdfQuadrature::build(density.as_ref(), config.quadrature)?;
         let directional_splits =
             DirectionalSplits::build(&quadrature, density.as_ref(), CACHED_DIRECTIONAL_LEVELS);
+        static NEXT_ID: AtomicU64 = AtomicU64::new(1);
         let mut tree = Self {
+            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             config,
             quadrature,
             density,
@@ -972,21 +979,27 @@ impl CountTree {
             }
             return inside;
         }
-        self.with_directional_split(cell, |split| {
-            let mut by_child = [0u64; 4];
-            for k in self::members(members) {
-                by_child[choose(&split.probabilities, particles[k].rng.uniform())] |= 1 << k;
+        let computed;
+        let (children, probabilities) = match self.directional_splits.get(cell) {
+            Some(split) => (&split.children, split.probabilities),
+            None => {
+                computed = cell.children();
+                (&computed, memo.split_probabilities(self, cell, &computed))
             }
-            let mut inside = 0;
-            for (child, group) in split.children.iter().zip(by_child) {
-                if group != 0 {
-                    let classification = memo.classify(child, conic);
-                    inside |=
-                        self.normals_in_conic(child, classification, conic, memo, particles, group);
-                }
+        };
+        let mut by_child = [0u64; 4];
+        for k in self::members(members) {
+            by_child[choose(&probabilities, particles[k].rng.uniform())] |= 1 << k;
+        }
+        let mut inside = 0;
+        for (child, group) in children.iter().zip(by_child) {
+            if group != 0 {
+                let classification = memo.classify(child, conic);
+                inside |=
+                    self.normals_in_conic(child, classification, conic, memo, particles, group);
             }
-            inside
-        })
+        }
+        inside
     }
 }
 
@@ -1017,11 +1030,25 @@ fn members(mut bits: u64) -> impl Iterator<Item = usize> {
 /// Table 1 workload a third of its conic classifications and two thirds of its box overlaps
 /// repeat, on the dense one a fifth and a third. Both tables are direct-mapped; a generation
 /// count tells this query's entries from earlier ones', so a query starts without clearing.
+///
+/// It also keeps, across queries, the split probabilities of the directional cells below the
+/// material's table of splits that leaf particles descend through (the dense workload computes
+/// 2.8 such splits per query, among some 1000 cells over all its queries): their solid
+/// angles and density values cost more than the rest of the descent step.
 #[derive(Debug, Default)]
 struct QueryMemo {
     classifications: Vec<ClassificationEntry>,
     boxes: Vec<BoxEntry>,
     generation: u32,
+    splits: Vec<SplitEntry>,
+}
+
+/// The split probabilities of a directional cell (its label) of a tree (its identity).
+#[derive(Clone, Copy, Debug)]
+struct SplitEntry {
+    tree: u64,
+    label: u64,
+    probabilities: [f64; 4],
 }
 
 /// A cell's label and how the query's conic meets the cell.
@@ -1046,6 +1073,9 @@ struct BoxEntry {
 const CLASSIFICATION_MEMO_BITS: u32 = 9;
 const BOX_MEMO_BITS: u32 = 8;
 
+/// log₂ of the entries of the split table (1024, 48 KB).
+const SPLIT_MEMO_BITS: u32 = 10;
+
 /// The slot of a 64-bit key in a table of 2^`bits` entries (Fibonacci hashing).
 #[inline]
 fn memo_slot(key: u64, bits: u32) -> usize {
@@ -1068,11 +1098,18 @@ impl QueryMemo {
         },
     };
 
+    const NO_SPLIT: SplitEntry = SplitEntry {
+        tree: 0,
+        label: 0,
+        probabilities: [0.0; 4],
+    };
+
     /// Forgets the previous query's answers (allocates the tables on first use).
     fn begin_query(&mut self) {
         if self.classifications.is_empty() {
             self.classifications = vec![Self::NO_CLASSIFICATION; 1 << CLASSIFICATION_MEMO_BITS];
             self.boxes = vec![Self::NO_BOX; 1 << BOX_MEMO_BITS];
+            self.splits = vec![Self::NO_SPLIT; 1 << SPLIT_MEMO_BITS];
         }
         self.generation = self.generation.wrapping_add(1);
         if self.generation == 0 {
@@ -1128,6 +1165,42 @@ impl QueryMemo {
             answer,
         };
         answer
+    }
+}
+
+impl QueryMemo {
+    /// The split probabilities of `cell` (whose `children` the caller has) in `tree`, for a
+    /// cell outside the tree's table of splits: remembered from an earlier query, or computed
+    /// (and remembered) as [`DirectionalSplit::of`] computes them.
+    fn split_probabilities(
+        &mut self,
+        tree: &CountTree,
+        cell: &DirectionalCell,
+        children: &[DirectionalCell; 4],
+    ) -> [f64; 4] {
+        let compute = || {
+            let solid_angles = children.map(|c| c.solid_angle());
+            tree.quadrature
+                .split_probabilities(children, &solid_angles, tree.density.as_ref())
+        };
+        // Labels name cells uniquely to this depth (deeper ones share a saturated label).
+        if cell.depth >= DirectionalCell::MAX_LABELLED_DEPTH {
+            return compute();
+        }
+        let key = cell.label ^ tree.id.rotate_left(47);
+        // The table's size (a power of two: 2^SPLIT_MEMO_BITS, smaller in a test).
+        let bits = self.splits.len().trailing_zeros();
+        let entry = &mut self.splits[memo_slot(key, bits)];
+        if entry.tree == tree.id && entry.label == cell.label {
+            return entry.probabilities;
+        }
+        let probabilities = compute();
+        *entry = SplitEntry {
+            tree: tree.id,
+            label: cell.label,
+            probabilities,
+        };
+        probabilities
     }
 }
 
@@ -1268,6 +1341,43 @@ mod tests {
             }
         }
         assert!(resolved.iter().all(|&n| n > 0), "{resolved:?}");
+    }
+
+    #[test]
+    fn remembered_split_probabilities_are_the_trees_own() {
+        // Sixteen materials share one memo (as one scratch serves every material of a scene):
+        // the 4096 cells of depth 6 of each, twice over, in the full table and in one of two
+        // slots, where materials meet under one label all the time.
+        let beckmann = |alpha: f64| -> Arc<NormalDensity> {
+            Arc::new(move |m: DVec3| {
+                let cos2 = m.z * m.z;
+                let tan2 = (1.0 - cos2) / cos2;
+                (-tan2 / (alpha * alpha)).exp() / (std::f64::consts::PI * alpha * alpha * cos2)
+            })
+        };
+        let trees: Vec<CountTree> = (0..16)
+            .map(|k| {
+                let alpha = 0.05 + 0.05 * f64::from(k);
+                CountTree::new(CountTreeConfig::default(), beckmann(alpha)).expect("valid")
+            })
+            .collect();
+        let mut cells = vec![DirectionalCell::HEMISPHERE];
+        for _ in 0..6 {
+            cells = cells.iter().flat_map(DirectionalCell::children).collect();
+        }
+        let mut memo = QueryMemo::default();
+        memo.begin_query();
+        for slots in [1 << SPLIT_MEMO_BITS, 2] {
+            memo.splits = vec![QueryMemo::NO_SPLIT; slots];
+            for cell in cells.iter().chain(&cells) {
+                for tree in &trees {
+                    let expected =
+                        DirectionalSplit::of(cell, &tree.quadrature, tree.density.as_ref());
+                    let remembered = memo.split_probabilities(tree, cell, &cell.children());
+                    assert_eq!(remembered, expected.probabilities, "cell {}", cell.label);
+                }
+            }
+        }
     }
 
     #[test]
