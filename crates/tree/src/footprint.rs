@@ -54,6 +54,40 @@ pub(crate) struct BoxMultiplicity<'a> {
 }
 
 impl BoxMultiplicity<'_> {
+    /// Which of the `N` equal columns and rows of this box may hold points with m > 0, as bit
+    /// masks (bit c for column or row c): a column's bit is clear only if m = 0 at every point
+    /// of it (as [`Self::at`] computes m). A point x has candidate column i only if footprint
+    /// min − x ≤ i ≤ footprint max − x (computed); for x between a column's bounds, monotone
+    /// rounding bounds these by footprint min − its upper and footprint max − its lower
+    /// bound, so translates outside those are no point's; rows alike.
+    pub(crate) fn meeting_columns_and_rows<const N: usize>(
+        &self,
+        min: DVec2,
+        size: f64,
+    ) -> [u32; 2] {
+        let Candidates::Few([i0, i1], [j0, j1]) = self.candidates else {
+            let all = if matches!(self.candidates, Candidates::None) {
+                0
+            } else {
+                u32::MAX
+            };
+            return [all; 2];
+        };
+        let step = size / N as f64;
+        let meeting = |start: f64, low: f64, high: f64, range: [i64; 2]| {
+            (0..N).fold(0u32, |mask, c| {
+                let (lo, hi) = (start + c as f64 * step, start + (c + 1) as f64 * step);
+                let hit =
+                    (range[0]..=range[1]).any(|i| (low - hi..=high - lo).contains(&(i as f64)));
+                mask | u32::from(hit) << c
+            })
+        };
+        [
+            meeting(min.x, self.footprint.min.x, self.footprint.max.x, [i0, i1]),
+            meeting(min.y, self.footprint.min.y, self.footprint.max.y, [j0, j1]),
+        ]
+    }
+
     /// m(x) for a point x of the box: the same as [`Footprint::multiplicity`]. A point's
     /// candidate translates are among its box's (min − x and max − x bracket those of the box,
     /// and rounding is monotone); they are the (i, j) with footprint min − x ≤ (i, j) ≤
@@ -567,6 +601,56 @@ mod tests {
             }
         }
         assert!(nonzero > 2000, "{nonzero} points with m > 0");
+    }
+
+    #[test]
+    fn columns_and_rows_without_points_in_the_footprint_are_told() {
+        // Points placed as leaves place them (a column's and a row's lower corner plus a
+        // fraction of their width): where m > 0, their column's and row's bits are set.
+        let mut uniform = uniforms(11);
+        let (mut positive, mut culled) = (0, 0);
+        for f in &sample_footprints() {
+            for level in [0, 3, 8, 10, 12, 20] {
+                let size = 0.5_f64.powi(level);
+                for _ in 0..300 {
+                    let near = f.center() + DVec2::new(uniform() - 0.5, uniform() - 0.5) * 0.004;
+                    let corner = if uniform() < 0.7 {
+                        near
+                    } else {
+                        DVec2::new(uniform(), uniform())
+                    };
+                    let min = (corner / size)
+                        .floor()
+                        .clamp(DVec2::ZERO, DVec2::splat(1.0 / size - 1.0))
+                        * size;
+                    let in_box = f.multiplicity_in_box(min, size);
+                    let [columns, rows] = in_box.meeting_columns_and_rows::<4>(min, size);
+                    culled += 8 - (columns.count_ones() + rows.count_ones()).min(8);
+                    let step = size / 4.0;
+                    for _ in 0..16 {
+                        let (c, r) = ((uniform() * 4.0) as usize, (uniform() * 4.0) as usize);
+                        let (u, v) = if uniform() < 0.2 {
+                            (0.0, 1.0 - f64::EPSILON)
+                        } else {
+                            (uniform(), uniform())
+                        };
+                        let x =
+                            min + DVec2::new(c as f64, r as f64) * step + step * DVec2::new(u, v);
+                        if in_box.at(x) > 0 {
+                            positive += 1;
+                            assert!(
+                                columns >> c & rows >> r & 1 == 1,
+                                "{f:?} box {min} {size} at {x}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            positive > 1000 && culled > 1000,
+            "{positive} points in, {culled} culled"
+        );
     }
 
     #[test]

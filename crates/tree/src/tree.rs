@@ -59,6 +59,10 @@ use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, unit_pair};
 /// more than 32 on the dense and glass workloads, 64 within ±2%.
 pub const LEAF_PARTICLES: u64 = 32;
 
+/// A leaf's box is divided into this many sub-boxes per side for placing its particles (16:
+/// four bits per particle).
+const LEAF_SUB_BOXES_PER_SIDE: usize = 4;
+
 /// At the depth guard, nodes with more particles than this add their expected share instead of
 /// being placed one by one (only degenerate queries get there).
 const MAX_EXPLICIT_PARTICLES: u64 = 256;
@@ -70,6 +74,7 @@ const SCALE_AFTER_NODES: u32 = 512;
 /// Stream purposes: separate streams of one node.
 const PURPOSE_SPLIT: u32 = 0;
 const PURPOSE_AREA: u32 = 1; // + channel
+const PURPOSE_LEAF_SUB_BOXES: u32 = 4;
 const PURPOSE_LEAF: u32 = 16; // + particle index
 
 /// The deepest top-level cache allowed (4⁸ entries of four nodes, ~70 MB).
@@ -742,31 +747,61 @@ impl CountTree {
                 }
             }
         }
-        // Particle k's position is draw 0 of its stream (x from its high 32 bits, y from its
-        // low ones): four particles' positions take one 4-lane TEA call. Its later draws (areas,
+        // Particle k lies in one of the box's 4×4 sub-boxes, four random bits of the leaf's
+        // own stream (sixteen particles per draw), and uniformly in it: its position is draw 0
+        // of its stream (x from the high 32 bits, y from the low ones). That is uniform in the
+        // box, and only the particles of sub-boxes whose translates may meet the footprint
+        // need their positions (four per 4-lane TEA call). A particle's later draws (areas,
         // then its normal) are drawn only if the footprint holds it.
         in_footprint.clear();
         let multiplicity_at = footprint.multiplicity_in_box(node.box_min, box_size);
-        for first in (0..node.count).step_by(4) {
-            let purposes: [u32; 4] =
-                std::array::from_fn(|i| PURPOSE_LEAF + (first as u32) + i as u32);
-            let draws = draws_x4(key, purposes, 0, rounds);
-            for lane in 0..(node.count - first).min(4) as usize {
-                let position = node.box_min + box_size * DVec2::from(unit_pair(draws[lane]));
-                let multiplicity = multiplicity_at.at(position);
-                if multiplicity == 0 {
-                    continue;
+        let sub_size = box_size / LEAF_SUB_BOXES_PER_SIDE as f64;
+        let sub_box_min = |code: usize| {
+            let (column, row) = (
+                code % LEAF_SUB_BOXES_PER_SIDE,
+                code / LEAF_SUB_BOXES_PER_SIDE,
+            );
+            node.box_min + sub_size * DVec2::new(column as f64, row as f64)
+        };
+        let [columns, rows] = multiplicity_at
+            .meeting_columns_and_rows::<LEAF_SUB_BOXES_PER_SIDE>(node.box_min, box_size);
+        let mut sub_boxes = self.stream(node.id, PURPOSE_LEAF_SUB_BOXES);
+        for first in (0..node.count).step_by(16) {
+            // The particles of these sixteen whose sub-boxes may meet the footprint.
+            let codes = sub_boxes.next_bits();
+            let mut candidates = [(0u32, 0usize); 16];
+            let mut found = 0;
+            for i in 0..(node.count - first).min(16) {
+                let code = (codes >> (4 * i) & 15) as usize;
+                let (column, row) = (
+                    code % LEAF_SUB_BOXES_PER_SIDE,
+                    code / LEAF_SUB_BOXES_PER_SIDE,
+                );
+                if columns >> column & rows >> row & 1 == 1 {
+                    candidates[found] = (PURPOSE_LEAF + (first + i) as u32, code);
+                    found += 1;
                 }
-                let mut rng = TeaRng::starting_at(key, purposes[lane], rounds, 1);
-                let mut shares = [0.0; 3];
-                for share in shares.iter_mut().take(channels) {
-                    *share = exponential(&mut rng);
+            }
+            for four in candidates[..found].chunks(4) {
+                let purposes: [u32; 4] = std::array::from_fn(|i| four.get(i).map_or(0, |c| c.0));
+                let draws = draws_x4(key, purposes, 0, rounds);
+                for (&(purpose, code), draw) in four.iter().zip(draws) {
+                    let position = sub_box_min(code) + sub_size * DVec2::from(unit_pair(draw));
+                    let multiplicity = multiplicity_at.at(position);
+                    if multiplicity == 0 {
+                        continue;
+                    }
+                    let mut rng = TeaRng::starting_at(key, purpose, rounds, 1);
+                    let mut shares = [0.0; 3];
+                    for share in shares.iter_mut().take(channels) {
+                        *share = exponential(&mut rng);
+                    }
+                    in_footprint.push(LeafParticle {
+                        rng,
+                        multiplicity,
+                        shares,
+                    });
                 }
-                in_footprint.push(LeafParticle {
-                    rng,
-                    multiplicity,
-                    shares,
-                });
             }
         }
         // The normals of the particles in the footprint, 64 at a time (a bit each).
