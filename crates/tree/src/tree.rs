@@ -408,19 +408,21 @@ impl CountTree {
     /// children in every query.
     fn emit_children(&self, node: &Node, mut emit: impl FnMut(Node)) -> bool {
         let spatial = self.splits_in_space(node);
-        let (cells, solid_angles, probabilities) = if spatial {
-            ([node.cell; 4], [node.solid_angle; 4], [0.25; 4])
+        // The directional split, borrowed from the material's table when it is there.
+        let computed;
+        let split = if spatial {
+            None
+        } else if let Some(split) = self.directional_splits.get(&node.cell) {
+            Some(split)
         } else {
-            self.with_directional_split(&node.cell, |split| {
-                (split.children, split.solid_angles, split.probabilities)
-            })
+            computed = DirectionalSplit::of(&node.cell, &self.quadrature, self.density.as_ref());
+            Some(&computed)
         };
         let mut rng = self.stream(node.id, PURPOSE_SPLIT);
         let mode = self.config.multinomial;
-        let counts = if spatial {
-            multinomial4_equal(node.count, mode, &mut rng)
-        } else {
-            multinomial4(node.count, probabilities, mode, &mut rng)
+        let counts = match split {
+            None => multinomial4_equal(node.count, mode, &mut rng),
+            Some(split) => multinomial4(node.count, split.probabilities, mode, &mut rng),
         };
         let mut areas = [[0.0; 3]; 4];
         for channel in 0..self.config.colour_channels {
@@ -432,19 +434,26 @@ impl CountTree {
         }
         let half = 0.5 * node.box_size();
         for j in 0..4 {
-            let (box_min, box_level) = if spatial {
-                let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
-                (node.box_min + offset, node.box_level + 1)
-            } else {
-                (node.box_min, node.box_level)
+            let (box_min, box_level, cell, solid_angle) = match split {
+                None => {
+                    let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
+                    let box_min = node.box_min + offset;
+                    (box_min, node.box_level + 1, node.cell, node.solid_angle)
+                }
+                Some(split) => (
+                    node.box_min,
+                    node.box_level,
+                    split.children[j],
+                    split.solid_angles[j],
+                ),
             };
             emit(Node {
                 id: node.id.child(j),
                 count: counts[j],
                 box_min,
                 box_level,
-                cell: cells[j],
-                solid_angle: solid_angles[j],
+                cell,
+                solid_angle,
                 depth: node.depth + 1,
                 areas: areas[j],
             });
@@ -765,6 +774,15 @@ impl CountTree {
         };
         let [columns, rows] = multiplicity_at
             .meeting_columns_and_rows::<LEAF_SUB_BOXES_PER_SIDE>(node.box_min, box_size);
+        // Bit `code` set for the sub-boxes in a meeting column and a meeting row.
+        let meeting =
+            (0..LEAF_SUB_BOXES_PER_SIDE * LEAF_SUB_BOXES_PER_SIDE).fold(0u32, |mask, code| {
+                let (column, row) = (
+                    code % LEAF_SUB_BOXES_PER_SIDE,
+                    code / LEAF_SUB_BOXES_PER_SIDE,
+                );
+                mask | (columns >> column & rows >> row & 1) << code
+            });
         let mut sub_boxes = self.stream(node.id, PURPOSE_LEAF_SUB_BOXES);
         for first in (0..node.count).step_by(16) {
             // The particles of these sixteen whose sub-boxes may meet the footprint.
@@ -773,11 +791,7 @@ impl CountTree {
             let mut found = 0;
             for i in 0..(node.count - first).min(16) {
                 let code = (codes >> (4 * i) & 15) as usize;
-                let (column, row) = (
-                    code % LEAF_SUB_BOXES_PER_SIDE,
-                    code / LEAF_SUB_BOXES_PER_SIDE,
-                );
-                if columns >> column & rows >> row & 1 == 1 {
+                if meeting >> code & 1 == 1 {
                     candidates[found] = (PURPOSE_LEAF + (first + i) as u32, code);
                     found += 1;
                 }
