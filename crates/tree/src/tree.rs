@@ -31,6 +31,7 @@
 //! Footprints wrap around the texture: a particle is counted once per integer translate inside
 //! the footprint (see [`crate::footprint`]).
 
+use std::borrow::Cow;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -63,6 +64,15 @@ pub const LEAF_PARTICLES: u64 = 32;
 /// four bits per particle).
 const LEAF_SUB_BOXES_PER_SIDE: usize = 4;
 
+/// The column and row of a leaf's sub-box from its four-bit code.
+#[inline]
+fn sub_box_column_and_row(code: usize) -> (usize, usize) {
+    (
+        code % LEAF_SUB_BOXES_PER_SIDE,
+        code / LEAF_SUB_BOXES_PER_SIDE,
+    )
+}
+
 /// At the depth guard, nodes with more particles than this add their expected share instead of
 /// being placed one by one (only degenerate queries get there).
 const MAX_EXPLICIT_PARTICLES: u64 = 256;
@@ -74,7 +84,7 @@ const SCALE_AFTER_NODES: u32 = 512;
 /// Stream purposes: separate streams of one node.
 const PURPOSE_SPLIT: u32 = 0;
 const PURPOSE_AREA: u32 = 1; // + channel
-const PURPOSE_LEAF_SUB_BOXES: u32 = 4;
+const PURPOSE_LEAF_SUB_BOXES: u32 = 4; // after the area channels (at most 3)
 const PURPOSE_LEAF: u32 = 16; // + particle index
 
 /// The deepest top-level cache allowed (4⁸ entries of four nodes, ~70 MB).
@@ -408,19 +418,10 @@ impl CountTree {
     /// children in every query.
     fn emit_children(&self, node: &Node, mut emit: impl FnMut(Node)) -> bool {
         let spatial = self.splits_in_space(node);
-        // The directional split, borrowed from the material's table when it is there.
-        let computed;
-        let split = if spatial {
-            None
-        } else if let Some(split) = self.directional_splits.get(&node.cell) {
-            Some(split)
-        } else {
-            computed = DirectionalSplit::of(&node.cell, &self.quadrature, self.density.as_ref());
-            Some(&computed)
-        };
+        let split = (!spatial).then(|| self.directional_split(&node.cell));
         let mut rng = self.stream(node.id, PURPOSE_SPLIT);
         let mode = self.config.multinomial;
-        let counts = match split {
+        let counts = match &split {
             None => multinomial4_equal(node.count, mode, &mut rng),
             Some(split) => multinomial4(node.count, split.probabilities, mode, &mut rng),
         };
@@ -434,7 +435,7 @@ impl CountTree {
         }
         let half = 0.5 * node.box_size();
         for j in 0..4 {
-            let (box_min, box_level, cell, solid_angle) = match split {
+            let (box_min, box_level, cell, solid_angle) = match &split {
                 None => {
                     let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
                     let box_min = node.box_min + offset;
@@ -504,16 +505,12 @@ impl CountTree {
         tested
     }
 
-    /// Calls `f` with the directional split of `cell`: from the material's table for coarse
-    /// cells, else computed.
-    fn with_directional_split<T>(
-        &self,
-        cell: &DirectionalCell,
-        f: impl FnOnce(&DirectionalSplit) -> T,
-    ) -> T {
+    /// The directional split of `cell`: borrowed from the material's table (coarse cells and
+    /// cells with an Alg. 2 entry), else computed.
+    fn directional_split(&self, cell: &DirectionalCell) -> Cow<'_, DirectionalSplit> {
         match self.directional_splits.get(cell) {
-            Some(split) => f(split),
-            None => f(&DirectionalSplit::of(
+            Some(split) => Cow::Borrowed(split),
+            None => Cow::Owned(DirectionalSplit::of(
                 cell,
                 &self.quadrature,
                 self.density.as_ref(),
@@ -766,10 +763,7 @@ impl CountTree {
         let multiplicity_at = footprint.multiplicity_in_box(node.box_min, box_size);
         let sub_size = box_size / LEAF_SUB_BOXES_PER_SIDE as f64;
         let sub_box_min = |code: usize| {
-            let (column, row) = (
-                code % LEAF_SUB_BOXES_PER_SIDE,
-                code / LEAF_SUB_BOXES_PER_SIDE,
-            );
+            let (column, row) = sub_box_column_and_row(code);
             node.box_min + sub_size * DVec2::new(column as f64, row as f64)
         };
         let [columns, rows] = multiplicity_at
@@ -777,10 +771,7 @@ impl CountTree {
         // Bit `code` set for the sub-boxes in a meeting column and a meeting row.
         let meeting =
             (0..LEAF_SUB_BOXES_PER_SIDE * LEAF_SUB_BOXES_PER_SIDE).fold(0u32, |mask, code| {
-                let (column, row) = (
-                    code % LEAF_SUB_BOXES_PER_SIDE,
-                    code / LEAF_SUB_BOXES_PER_SIDE,
-                );
+                let (column, row) = sub_box_column_and_row(code);
                 mask | (columns >> column & rows >> row & 1) << code
             });
         let mut sub_boxes = self.stream(node.id, PURPOSE_LEAF_SUB_BOXES);
@@ -884,11 +875,10 @@ impl CountTree {
                 excess.cells += 1;
                 continue;
             }
-            self.with_directional_split(&cell, |split| {
-                for (child, p) in split.children.iter().zip(split.probabilities) {
-                    stack.push((*child, probability * p));
-                }
-            });
+            let split = self.directional_split(&cell);
+            for (child, p) in split.children.iter().zip(split.probabilities) {
+                stack.push((*child, probability * p));
+            }
         }
         excess
     }
@@ -1215,9 +1205,7 @@ impl QueryMemo {
         };
         answer
     }
-}
 
-impl QueryMemo {
     /// The split probabilities of `cell` (whose `children` the caller has) in `tree`, for a
     /// cell outside the tree's table of splits: remembered from an earlier query, or computed
     /// (and remembered) as [`DirectionalSplit::of`] computes them.
@@ -1300,9 +1288,8 @@ mod tests {
                 return conic.contains(normal);
             }
             let u = rng.uniform();
-            cell = tree.with_directional_split(&cell, |split| {
-                split.children[choose(&split.probabilities, u)]
-            });
+            let split = tree.directional_split(&cell);
+            cell = split.children[choose(&split.probabilities, u)];
             classification = classify_cell(&cell, conic);
         }
     }
