@@ -781,11 +781,11 @@ impl CountTree {
             let mut candidates = [(0u32, 0usize); 16];
             let mut found = 0;
             for i in 0..(node.count - first).min(16) {
+                // Written always, kept by advancing `found` (no branch to mispredict: whether
+                // a particle's sub-box meets the footprint is a coin toss).
                 let code = (codes >> (4 * i) & 15) as usize;
-                if meeting >> code & 1 == 1 {
-                    candidates[found] = (PURPOSE_LEAF + (first + i) as u32, code);
-                    found += 1;
-                }
+                candidates[found] = (PURPOSE_LEAF + (first + i) as u32, code);
+                found += (meeting >> code & 1) as usize;
             }
             for four in candidates[..found].chunks(4) {
                 let purposes: [u32; 4] = std::array::from_fn(|i| four.get(i).map_or(0, |c| c.0));
@@ -1243,14 +1243,14 @@ impl QueryMemo {
 
 /// The child a uniform `u` picks under split probabilities summing to 1 (the last child takes
 /// any rounding remainder).
-fn choose(probabilities: &[f64; 4], mut u: f64) -> usize {
-    for (j, p) in probabilities.iter().enumerate().take(3) {
-        if u < *p {
-            return j;
-        }
-        u -= p;
-    }
-    3
+fn choose(probabilities: &[f64; 4], u: f64) -> usize {
+    // The first j with u − p₀ − … − p_{j−1} < p_j, without branches (the child is random, so
+    // a branch per comparison would be mispredicted often).
+    let [p0, p1, p2, _] = *probabilities;
+    let past_first = u >= p0;
+    let past_second = u - p0 >= p1;
+    let past_third = u - p0 - p1 >= p2;
+    usize::from(past_first) * (1 + usize::from(past_second) * (1 + usize::from(past_third)))
 }
 
 #[cfg(test)]
