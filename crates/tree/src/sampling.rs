@@ -11,7 +11,8 @@
 //!
 //! # Multinomial splits (Sec. 3.4, "Optimizations")
 //! [`MultinomialMode::Exact`] draws n ≤ 8 particles one by one (categorical draws) and larger n
-//! as conditional binomials: X₀ ~ Bin(n, p₀), X₁ ~ Bin(n − X₀, p₁/(p₁+p₂+p₃)), and so on.
+//! as a binary tree of conditional binomials: X₀ + X₁ ~ Bin(n, p₀ + p₁), then
+//! X₀ ~ Bin(X₀ + X₁, p₀/(p₀ + p₁)) and X₂ ~ Bin(n − X₀ − X₁, p₂/(p₂ + p₃)).
 //! [`MultinomialMode::Normal`] is the paper's approximation for n > 8: the normal distribution
 //! with mean n·p and covariance n(diag p − ppᵀ), sampled by sequential conditioning
 //! (X₀ ~ N(np₀, np₀(1−p₀)), then X₁ | X₀ ~ N((n−X₀)p₁/(1−p₀), np₁(1−p₀−p₁)/(1−p₀)), …, which
@@ -305,26 +306,25 @@ pub fn multinomial4_equal_by_bits(n: u64, rng: &mut TeaRng) -> [u64; 4] {
     counts
 }
 
-/// Exact: X₀ ~ Bin(n, p₀), X₁ ~ Bin(n − X₀, p₁/(p₁+p₂+p₃)), X₂ likewise, X₃ the rest.
+/// Exact, as a binary tree of conditional binomials: the left pair X₀ + X₁ ~ Bin(n, p₀ + p₁),
+/// then X₀ ~ Bin(X₀ + X₁, p₀/(p₀ + p₁)) and X₂ ~ Bin(X₂ + X₃, p₂/(p₂ + p₃)). The two second-level
+/// draws do not depend on each other, so the processor overlaps them (two binomials in a row
+/// instead of three).
 fn multinomial4_conditional(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 4] {
-    let mut counts = [0u64; 4];
-    let mut remaining = n;
-    for i in 0..3 {
-        if remaining == 0 {
-            break;
-        }
-        // The remaining probability as a sum (not 1 − Σ), so it stays exact.
-        let rest: f64 = p[i..].iter().sum();
-        let conditional = if rest > 0.0 {
-            (p[i] / rest).min(1.0)
+    let (left, right) = (p[0] + p[1], p[2] + p[3]);
+    // A share of a positive sum (clamped against rounding); 0 when the sum is 0.
+    let share = |part: f64, total: f64| {
+        if total > 0.0 {
+            (part / total).min(1.0)
         } else {
             0.0
-        };
-        counts[i] = binomial(remaining, conditional, rng);
-        remaining -= counts[i];
-    }
-    counts[3] = remaining;
-    counts
+        }
+    };
+    let left_count = binomial(n, share(left, left + right), rng);
+    let right_count = n - left_count;
+    let first = binomial(left_count, share(p[0], left), rng);
+    let third = binomial(right_count, share(p[2], right), rng);
+    [first, left_count - first, third, right_count - third]
 }
 
 /// The category of uniform `u` under probabilities `p` (robust to p not summing to 1 exactly).
