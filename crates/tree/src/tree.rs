@@ -35,7 +35,7 @@ use std::borrow::Cow;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use glint_sphere::{
     Classification, OverlapMethod, SphericalConic, SphericalTriangle, overlap_solid_angle,
 };
@@ -48,7 +48,7 @@ use crate::ndf::{
 };
 use crate::node::NodeId;
 use crate::sampling::{MultinomialMode, dirichlet4, exponential, multinomial4, multinomial4_equal};
-use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, unit_pair};
+use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, encrypt, unit_f64, unit_pair};
 
 /// Nodes with at most this many particles place them explicitly (leaves). A leaf costs one
 /// visit and a few ns per particle (one 4-lane TEA call per four positions, the normal only
@@ -747,7 +747,7 @@ impl CountTree {
         let mut exponential_sums = [0.0; 3];
         if channels > 0 {
             for k in 0..node.count {
-                let mut rng = TeaRng::starting_at(key, PURPOSE_LEAF + k as u32, rounds, 1);
+                let mut rng = TeaRng::starting_at(key, PURPOSE_LEAF + k as u32, rounds, DRAW_AREAS);
                 for sum in exponential_sums.iter_mut().take(channels) {
                     *sum += exponential(&mut rng);
                 }
@@ -757,8 +757,8 @@ impl CountTree {
         // own stream (sixteen particles per draw), and uniformly in it: its position is draw 0
         // of its stream (x from the high 32 bits, y from the low ones). That is uniform in the
         // box, and only the particles of sub-boxes whose translates may meet the footprint
-        // need their positions (four per 4-lane TEA call). A particle's later draws (areas,
-        // then its normal) are drawn only if the footprint holds it.
+        // need their positions (four per 4-lane TEA call). A particle's later draws (its
+        // normal's, its areas': see `DRAW_DESCENT`) are drawn only if the footprint holds it.
         in_footprint.clear();
         let multiplicity_at = footprint.multiplicity_in_box(node.box_min, box_size);
         let sub_size = box_size / LEAF_SUB_BOXES_PER_SIDE as f64;
@@ -796,26 +796,44 @@ impl CountTree {
                     if multiplicity == 0 {
                         continue;
                     }
-                    let mut rng = TeaRng::starting_at(key, purpose, rounds, 1);
                     let mut shares = [0.0; 3];
-                    for share in shares.iter_mut().take(channels) {
-                        *share = exponential(&mut rng);
+                    if channels > 0 {
+                        let mut rng = TeaRng::starting_at(key, purpose, rounds, DRAW_AREAS);
+                        for share in shares.iter_mut().take(channels) {
+                            *share = exponential(&mut rng);
+                        }
                     }
                     in_footprint.push(LeafParticle {
-                        rng,
+                        normal: NormalDescent::new(purpose, DRAW_AREAS + channels as u32),
                         multiplicity,
                         shares,
                     });
                 }
             }
         }
+        // The first uniform number of each descent, four particles per 4-lane TEA call.
+        for four in in_footprint.chunks_mut(4) {
+            let purposes: [u32; 4] =
+                std::array::from_fn(|i| four.get(i).map_or(0, |p| p.normal.purpose));
+            let draws = draws_x4(key, purposes, DRAW_DESCENT, rounds);
+            for (particle, draw) in four.iter_mut().zip(draws) {
+                particle.normal.uniform = unit_f64(draw);
+            }
+        }
         // The normals of the particles in the footprint, 64 at a time (a bit each).
+        let stream = LeafStream { key, rounds };
         let mut found = 0.0;
         let mut areas = [0.0; 3];
         for group in in_footprint.chunks_mut(64) {
             let everyone = u64::MAX >> (64 - group.len());
-            let inside =
-                self.normals_in_conic(&node.cell, directional, conic, memo, group, everyone);
+            let inside = self.normals_in_conic(
+                &node.cell,
+                directional,
+                conic,
+                memo,
+                (&stream, group),
+                everyone,
+            );
             for particle in members(inside).map(|k| &group[k]) {
                 let multiplicity = particle.multiplicity as f64;
                 found += multiplicity;
@@ -999,7 +1017,7 @@ impl CountTree {
         classification: Classification,
         conic: &SphericalConic,
         memo: &mut QueryMemo,
-        particles: &mut [LeafParticle],
+        (stream, particles): (&LeafStream, &mut [LeafParticle]),
         members: u64,
     ) -> u64 {
         match classification {
@@ -1010,10 +1028,7 @@ impl CountTree {
         if let Some(triangle) = self.final_cell(cell) {
             let mut inside = 0;
             for k in self::members(members) {
-                let rng = &mut particles[k].rng;
-                let root = rng.uniform().sqrt();
-                let v = rng.uniform();
-                let normal = triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
+                let normal = particles[k].normal.point_in(triangle, stream);
                 inside |= u64::from(conic.contains(normal)) << k;
             }
             return inside;
@@ -1028,28 +1043,123 @@ impl CountTree {
         };
         let mut by_child = [0u64; 4];
         for k in self::members(members) {
-            by_child[choose(&probabilities, particles[k].rng.uniform())] |= 1 << k;
+            by_child[particles[k].normal.step(&probabilities, stream)] |= 1 << k;
         }
         let mut inside = 0;
         for (child, group) in children.iter().zip(by_child) {
             if group != 0 {
                 let classification = memo.classify(child, conic);
-                inside |=
-                    self.normals_in_conic(child, classification, conic, memo, particles, group);
+                inside |= self.normals_in_conic(
+                    child,
+                    classification,
+                    conic,
+                    memo,
+                    (stream, particles),
+                    group,
+                );
             }
         }
         inside
     }
 }
 
-/// A leaf particle in the footprint, between its position and its normal: the stream its
-/// normal's draws come from, how many footprint translates hold it, and its exponential
-/// area draws per channel.
+/// A leaf particle in the footprint, between its position and its normal: its normal's
+/// descent, how many footprint translates hold it, and its exponential area draws per channel.
 #[derive(Clone, Debug)]
 struct LeafParticle {
-    rng: TeaRng,
+    normal: NormalDescent,
     multiplicity: u64,
     shares: [f64; 3],
+}
+
+/// A leaf particle's stream is (the leaf's key, its purpose): draw 0 is its position in the
+/// box, draw 1 the first uniform number of its normal's descent, draws 2… its area shares
+/// (one per colour channel), and the draws after those its descent's further numbers.
+const DRAW_DESCENT: u32 = 1;
+/// The first area-share draw of a leaf particle's stream (see [`DRAW_DESCENT`]).
+const DRAW_AREAS: u32 = 2;
+
+/// The key and TEA rounds of a leaf's particles' streams.
+struct LeafStream {
+    key: [u32; 4],
+    rounds: u32,
+}
+
+/// A leaf particle's normal on its way down the directional hierarchy, by inversion: one
+/// uniform number u picks the child whose interval [p₀ + … + p_{j−1}, p₀ + … + p_j) holds it,
+/// and u rescaled to that interval, (u − p₀ − … − p_{j−1})/p_j, is again uniform and picks
+/// the next level's child. The path then has the law of one categorical draw per level with
+/// the split probabilities. Rescaling spends log₂(1/p_j) of u's 53 bits per level; once the
+/// interval's width (the product of the p_j taken) is below 2⁻²¹, fewer than 32 bits would be
+/// left (the resolution of the particle's position), and u is replaced by the stream's next
+/// draw. Most descents thus take one draw, which a 4-lane TEA call computes for four
+/// particles at once.
+#[derive(Clone, Debug)]
+struct NormalDescent {
+    /// The particle's stream: (leaf key, purpose).
+    purpose: u32,
+    /// The stream's next unused draw.
+    next_draw: u32,
+    /// The current uniform number in [0, 1).
+    uniform: f64,
+    /// The width of the interval of the number drawn that `uniform` now spans.
+    width: f64,
+}
+
+/// Below this interval width a descent takes a fresh draw (see [`NormalDescent`]).
+const DESCENT_MIN_WIDTH: f64 = 1.0 / (1u64 << 21) as f64;
+
+/// The largest double below 1.
+const ONE_BELOW: f64 = 1.0 - f64::EPSILON / 2.0;
+
+impl NormalDescent {
+    /// The descent of the particle with stream `purpose`, whose draws from `next_draw` on are
+    /// unused; `uniform` is set by the caller (draw [`DRAW_DESCENT`]).
+    fn new(purpose: u32, next_draw: u32) -> Self {
+        Self {
+            purpose,
+            next_draw,
+            uniform: 0.0,
+            width: 1.0,
+        }
+    }
+
+    /// The stream's next draw as a uniform number in [0, 1).
+    fn fresh_uniform(&mut self, stream: &LeafStream) -> f64 {
+        let (a, b) = encrypt(self.next_draw, self.purpose, stream.key, stream.rounds);
+        self.next_draw += 1;
+        unit_f64((u64::from(a) << 32) | u64::from(b))
+    }
+
+    /// The child (0–3) the descent takes under split `probabilities` (summing to 1 up to
+    /// rounding; the last child takes any remainder), after which `self` is the descent in it.
+    fn step(&mut self, probabilities: &[f64; 4], stream: &LeafStream) -> usize {
+        let [p0, p1, p2, p3] = *probabilities;
+        let u = self.uniform;
+        let (r1, r2) = (u - p0, u - p0 - p1);
+        let r3 = r2 - p2;
+        // The first j with u − p₀ − … − p_{j−1} < p_j, without branches (the child is random,
+        // so a branch per comparison would be mispredicted often).
+        let child =
+            usize::from(u >= p0) * (1 + usize::from(r1 >= p1) * (1 + usize::from(r2 >= p2)));
+        let (remainder, p) = [(u, p0), (r1, p1), (r2, p2), (r3, p3)][child];
+        self.width *= p;
+        self.uniform = if self.width < DESCENT_MIN_WIDTH {
+            self.width = 1.0;
+            self.fresh_uniform(stream)
+        } else {
+            (remainder / p).clamp(0.0, ONE_BELOW)
+        };
+        child
+    }
+
+    /// The particle's normal, uniform in the flat `triangle` of its final cell (projected):
+    /// two fresh draws.
+    fn point_in(&mut self, triangle: &SphericalTriangle, stream: &LeafStream) -> DVec3 {
+        let root = self.fresh_uniform(stream).sqrt();
+        let v = self.fresh_uniform(stream);
+        triangle.direction_at([1.0 - root, root * (1.0 - v), root * v])
+    }
 }
 
 /// The indices of the set bits of `bits`, in increasing order.
@@ -1241,18 +1351,6 @@ impl QueryMemo {
     }
 }
 
-/// The child a uniform `u` picks under split probabilities summing to 1 (the last child takes
-/// any rounding remainder).
-fn choose(probabilities: &[f64; 4], u: f64) -> usize {
-    // The first j with u − p₀ − … − p_{j−1} < p_j, without branches (the child is random, so
-    // a branch per comparison would be mispredicted often).
-    let [p0, p1, p2, _] = *probabilities;
-    let past_first = u >= p0;
-    let past_second = u - p0 >= p1;
-    let past_third = u - p0 - p1 >= p2;
-    usize::from(past_first) * (1 + usize::from(past_second) * (1 + usize::from(past_third)))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1272,7 +1370,8 @@ mod tests {
         cell: &DirectionalCell,
         classification: Classification,
         conic: &SphericalConic,
-        rng: &mut TeaRng,
+        stream: &LeafStream,
+        normal: &mut NormalDescent,
     ) -> bool {
         let (mut cell, mut classification) = (*cell, classification);
         loop {
@@ -1282,15 +1381,53 @@ mod tests {
                 Classification::ConicInsideTriangle | Classification::Partial => {}
             }
             if let Some(triangle) = tree.final_cell(&cell) {
-                let root = rng.uniform().sqrt();
-                let v = rng.uniform();
-                let normal = triangle.direction_at([1.0 - root, root * (1.0 - v), root * v]);
-                return conic.contains(normal);
+                return conic.contains(normal.point_in(triangle, stream));
             }
-            let u = rng.uniform();
             let split = tree.directional_split(&cell);
-            cell = split.children[choose(&split.probabilities, u)];
+            cell = split.children[normal.step(&split.probabilities, stream)];
             classification = classify_cell(&cell, conic);
+        }
+    }
+
+    /// A descent by inversion has the law of independent categorical draws per level: the
+    /// children taken at consecutive levels are independent, each with the split's
+    /// probabilities, across the fresh draws that replace a spent number (chi-square, 15
+    /// degrees of freedom, α = 1e-6 per level pair).
+    #[test]
+    fn descents_by_inversion_take_independent_categorical_steps() {
+        let p = [0.05, 0.15, 0.3, 0.5];
+        let (particles, levels) = (40_000u32, 30);
+        let stream = LeafStream {
+            key: [5, 6, 7, 8],
+            rounds: 8,
+        };
+        let mut pairs = vec![[[0u32; 4]; 4]; levels - 1];
+        let mut fresh_draws = 0;
+        for purpose in 0..particles {
+            let mut descent = NormalDescent::new(purpose, 1);
+            descent.uniform = descent.fresh_uniform(&stream);
+            let mut previous = descent.step(&p, &stream);
+            for pair in &mut pairs {
+                let child = descent.step(&p, &stream);
+                pair[previous][child] += 1;
+                previous = child;
+            }
+            fresh_draws += descent.next_draw - 2;
+        }
+        // About one fresh draw per 13 levels (−Σ p ln p = 1.14 nats per level, 2⁻²¹ = e^−14.6).
+        assert!(
+            fresh_draws > particles,
+            "{fresh_draws} fresh draws for {particles} descents"
+        );
+        for (level, pair) in pairs.iter().enumerate() {
+            let mut chi_square = 0.0;
+            for (a, row) in pair.iter().enumerate() {
+                for (b, &observed) in row.iter().enumerate() {
+                    let expected = f64::from(particles) * p[a] * p[b];
+                    chi_square += (f64::from(observed) - expected).powi(2) / expected;
+                }
+            }
+            assert!(chi_square < 57.4, "levels {level}, {}: χ² = {chi_square}", level + 1);
         }
     }
 
@@ -1458,14 +1595,23 @@ mod tests {
             };
             let classification = classify_cell(&cell, &conic);
             let count = 1 + (trial % 64);
+            let stream = LeafStream {
+                key: [trial, 7, 8, 9],
+                rounds: 8,
+            };
             let mut particles: Vec<LeafParticle> = (0..count)
-                .map(|k| LeafParticle {
-                    rng: TeaRng::starting_at([trial, 7, 8, 9], k, 8, k % 3),
-                    multiplicity: 1,
-                    shares: [0.0; 3],
+                .map(|k| {
+                    let mut normal = NormalDescent::new(k, 2 + k % 3);
+                    normal.uniform = draws.uniform();
+                    LeafParticle {
+                        normal,
+                        multiplicity: 1,
+                        shares: [0.0; 3],
+                    }
                 })
                 .collect();
-            let mut alone: Vec<TeaRng> = particles.iter().map(|p| p.rng.clone()).collect();
+            let mut alone: Vec<NormalDescent> =
+                particles.iter().map(|p| p.normal.clone()).collect();
             let everyone = u64::MAX >> (64 - count);
             memo.begin_query();
             let grouped = tree.normals_in_conic(
@@ -1473,18 +1619,24 @@ mod tests {
                 classification,
                 &conic,
                 &mut memo,
-                &mut particles,
+                (&stream, &mut particles),
                 everyone,
             );
-            for (k, rng) in alone.iter_mut().enumerate() {
-                let expected = normal_in_conic_alone(&tree, &cell, classification, &conic, rng);
+            for (k, normal) in alone.iter_mut().enumerate() {
+                let expected =
+                    normal_in_conic_alone(&tree, &cell, classification, &conic, &stream, normal);
                 assert_eq!(
                     grouped >> k & 1 == 1,
                     expected,
                     "trial {trial} particle {k}"
                 );
                 // Each particle took the same draws as alone.
-                assert_eq!(particles[k].rng.uniform(), rng.uniform(), "trial {trial}");
+                let grouped = &particles[k].normal;
+                assert_eq!(
+                    (grouped.uniform, grouped.next_draw),
+                    (normal.uniform, normal.next_draw),
+                    "trial {trial}"
+                );
             }
             partial_answers += u32::from(grouped != 0 && grouped != everyone);
             found += grouped.count_ones();
