@@ -1427,7 +1427,11 @@ mod tests {
                     chi_square += (f64::from(observed) - expected).powi(2) / expected;
                 }
             }
-            assert!(chi_square < 57.4, "levels {level}, {}: χ² = {chi_square}", level + 1);
+            assert!(
+                chi_square < 57.4,
+                "levels {level}, {}: χ² = {chi_square}",
+                level + 1
+            );
         }
     }
 
