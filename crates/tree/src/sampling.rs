@@ -12,7 +12,9 @@
 //! # Multinomial splits (Sec. 3.4, "Optimizations")
 //! [`MultinomialMode::Exact`] draws n ≤ 8 particles one by one (categorical draws) and larger n
 //! as a binary tree of conditional binomials: X₀ + X₁ ~ Bin(n, p₀ + p₁), then
-//! X₀ ~ Bin(X₀ + X₁, p₀/(p₀ + p₁)) and X₂ ~ Bin(n − X₀ − X₁, p₂/(p₂ + p₃)).
+//! X₀ ~ Bin(X₀ + X₁, p₀/(p₀ + p₁)) and X₂ ~ Bin(n − X₀ − X₁, p₂/(p₂ + p₃)). The two
+//! second-level draws are independent given the totals: the processor overlaps them, and the
+//! count tree draws only the pairs a query needs.
 //! [`MultinomialMode::Normal`] is the paper's approximation for n > 8: the normal distribution
 //! with mean n·p and covariance n(diag p − ppᵀ), sampled by sequential conditioning
 //! (X₀ ~ N(np₀, np₀(1−p₀)), then X₁ | X₀ ~ N((n−X₀)p₁/(1−p₀), np₁(1−p₀−p₁)/(1−p₀)), …, which
@@ -232,13 +234,17 @@ fn binomial_btrd(n: u64, p: f64, rng: &mut TeaRng) -> u64 {
     }
 }
 
+/// The largest split [`multinomial4`] draws particle by particle (categorical draws), in both
+/// modes, as the paper does.
+pub const CATEGORICAL_PARTICLES: u64 = 8;
+
 /// Splits `n` particles among four children with probabilities `p` (non-negative, summing to
 /// 1 up to rounding). The result always sums to `n`.
 ///
 /// Both modes draw n ≤ 8 particles one by one (categorical draws, four uniforms per 4-lane TEA
 /// call), as the paper does; above 8 the mode decides.
 pub fn multinomial4(n: u64, p: [f64; 4], mode: MultinomialMode, rng: &mut TeaRng) -> [u64; 4] {
-    if n <= 8 {
+    if n <= CATEGORICAL_PARTICLES {
         // One categorical draw per particle, four uniforms per 4-lane TEA call.
         let mut counts = [0u64; 4];
         let mut remaining = n as usize;
@@ -306,25 +312,39 @@ pub fn multinomial4_equal_by_bits(n: u64, rng: &mut TeaRng) -> [u64; 4] {
     counts
 }
 
-/// Exact, as a binary tree of conditional binomials: the left pair X₀ + X₁ ~ Bin(n, p₀ + p₁),
-/// then X₀ ~ Bin(X₀ + X₁, p₀/(p₀ + p₁)) and X₂ ~ Bin(X₂ + X₃, p₂/(p₂ + p₃)). The two second-level
-/// draws do not depend on each other, so the processor overlaps them (two binomials in a row
-/// instead of three).
+/// Exact, as a binary tree of conditional binomials ([`pair_totals`], then [`divide_pair`]
+/// for each pair), all from one stream.
 fn multinomial4_conditional(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 4] {
-    let (left, right) = (p[0] + p[1], p[2] + p[3]);
-    // A share of a positive sum (clamped against rounding); 0 when the sum is 0.
-    let share = |part: f64, total: f64| {
-        if total > 0.0 {
-            (part / total).min(1.0)
-        } else {
-            0.0
-        }
-    };
-    let left_count = binomial(n, share(left, left + right), rng);
-    let right_count = n - left_count;
-    let first = binomial(left_count, share(p[0], left), rng);
-    let third = binomial(right_count, share(p[2], right), rng);
-    [first, left_count - first, third, right_count - third]
+    let totals = pair_totals(n, p, rng);
+    let [first, second] = divide_pair(totals[0], p, 0, rng);
+    let [third, fourth] = divide_pair(totals[1], p, 1, rng);
+    [first, second, third, fourth]
+}
+
+/// The first level of an exact split's binary tree: the totals of the pairs (0, 1) and
+/// (2, 3), X₀ + X₁ ~ Bin(n, p₀ + p₁) and the rest.
+pub fn pair_totals(n: u64, p: [f64; 4], rng: &mut TeaRng) -> [u64; 2] {
+    let left = binomial(n, share(p[0] + p[1], p[0] + p[1] + p[2] + p[3]), rng);
+    [left, n - left]
+}
+
+/// The second level of an exact split's binary tree: pair `pair` ((0, 1) or (2, 3)), holding
+/// `total` particles, divided between its two children, X₂ᵢ ~ Bin(total, p₂ᵢ/(p₂ᵢ + p₂ᵢ₊₁)).
+/// The two pairs' divisions are independent given the totals: a caller may draw only the
+/// pair it needs, from a stream of its own.
+pub fn divide_pair(total: u64, p: [f64; 4], pair: usize, rng: &mut TeaRng) -> [u64; 2] {
+    let (a, b) = (p[2 * pair], p[2 * pair + 1]);
+    let first = binomial(total, share(a, a + b), rng);
+    [first, total - first]
+}
+
+/// part/total, clamped to 1 against rounding; 0 when the total is 0.
+fn share(part: f64, total: f64) -> f64 {
+    if total > 0.0 {
+        (part / total).min(1.0)
+    } else {
+        0.0
+    }
 }
 
 /// The category of uniform `u` under probabilities `p` (robust to p not summing to 1 exactly).

@@ -47,7 +47,10 @@ use crate::ndf::{
     QuadratureTolerance,
 };
 use crate::node::NodeId;
-use crate::sampling::{MultinomialMode, dirichlet4, exponential, multinomial4, multinomial4_equal};
+use crate::sampling::{
+    CATEGORICAL_PARTICLES, EQUAL_SPLIT_BY_BITS, MultinomialMode, dirichlet4, divide_pair,
+    exponential, multinomial4, multinomial4_equal, pair_totals,
+};
 use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, encrypt, unit_f64, unit_pair};
 
 /// Nodes with at most this many particles place them explicitly (leaves). A leaf costs one
@@ -85,6 +88,7 @@ const SCALE_AFTER_NODES: u32 = 512;
 const PURPOSE_SPLIT: u32 = 0;
 const PURPOSE_AREA: u32 = 1; // + channel
 const PURPOSE_LEAF_SUB_BOXES: u32 = 4; // after the area channels (at most 3)
+const PURPOSE_PAIR: u32 = 5; // + pair (0 or 1): the division of an exact split's pair
 const PURPOSE_LEAF: u32 = 16; // + particle index
 
 /// The deepest top-level cache allowed (4⁸ entries of four nodes, ~70 MB).
@@ -239,13 +243,67 @@ struct QueuedNode {
     directional: Classification,
 }
 
+/// A split's counts as the totals of the pairs of children (0, 1) and (2, 3), each pair
+/// divided between its children on demand (see `CountTree::split_counts`).
+struct PairCounts {
+    totals: [u64; 2],
+    pairs: [PairDivision; 2],
+    probabilities: [f64; 4],
+    /// The node's key and TEA rounds, for the pairs' streams.
+    key: [u32; 4],
+    rounds: u32,
+}
+
+/// A pair's division between its two children: drawn, or pending with draw 0 of its stream.
+#[derive(Clone, Copy)]
+enum PairDivision {
+    Drawn([u64; 2]),
+    Pending { first_draw: u64 },
+}
+
+impl PairCounts {
+    /// Counts drawn all at once.
+    fn drawn(counts: [u64; 4]) -> Self {
+        Self {
+            totals: [counts[0] + counts[1], counts[2] + counts[3]],
+            pairs: [
+                PairDivision::Drawn([counts[0], counts[1]]),
+                PairDivision::Drawn([counts[2], counts[3]]),
+            ],
+            probabilities: [0.25; 4],
+            key: [0; 4],
+            rounds: 0,
+        }
+    }
+
+    /// The counts of the children of `pair` (0 or 1), drawn on the first call.
+    fn divide(&mut self, pair: usize) -> [u64; 2] {
+        match self.pairs[pair] {
+            PairDivision::Drawn(counts) => counts,
+            PairDivision::Pending { first_draw } => {
+                let purpose = PURPOSE_PAIR + pair as u32;
+                let mut rng = TeaRng::with_first_draw(self.key, purpose, self.rounds, first_draw);
+                let counts = divide_pair(self.totals[pair], self.probabilities, pair, &mut rng);
+                self.pairs[pair] = PairDivision::Drawn(counts);
+                counts
+            }
+        }
+    }
+}
+
 impl Node {
     /// The box's side, 2^−level (exact: a power of two built from its exponent bits).
     #[inline]
     fn box_size(&self) -> f64 {
-        debug_assert!(self.box_level < 1000);
-        f64::from_bits((1023 - u64::from(self.box_level)) << 52)
+        box_size_at(self.box_level)
     }
+}
+
+/// The side of a box at `level`, 2^−level (exact: a power of two built from its exponent bits).
+#[inline]
+fn box_size_at(level: u32) -> f64 {
+    debug_assert!(level < 1000);
+    f64::from_bits((1023 - u64::from(level)) << 52)
 }
 
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
@@ -413,18 +471,15 @@ impl CountTree {
             < self.config.expected_query_solid_angle * box_area
     }
 
-    /// Hands the four children of `node` (counts drawn from its stream) to `emit`, in order,
+    /// Hands the four children of `node` (counts drawn from its streams) to `emit`, in order,
     /// and returns whether the split is spatial. A pure function of the node: the same
     /// children in every query.
     fn emit_children(&self, node: &Node, mut emit: impl FnMut(Node)) -> bool {
         let spatial = self.splits_in_space(node);
         let split = (!spatial).then(|| self.directional_split(&node.cell));
-        let mut rng = self.stream(node.id, PURPOSE_SPLIT);
-        let mode = self.config.multinomial;
-        let counts = match &split {
-            None => multinomial4_equal(node.count, mode, &mut rng),
-            Some(split) => multinomial4(node.count, split.probabilities, mode, &mut rng),
-        };
+        let mut counts = self.split_counts(node, split.as_deref());
+        let counts = [counts.divide(0), counts.divide(1)];
+        let counts = [counts[0][0], counts[0][1], counts[1][0], counts[1][1]];
         let mut areas = [[0.0; 3]; 4];
         for channel in 0..self.config.colour_channels {
             let mut rng = self.stream(node.id, PURPOSE_AREA + channel as u32);
@@ -433,39 +488,97 @@ impl CountTree {
                 child_areas[channel] = node.areas[channel] * part;
             }
         }
-        let half = 0.5 * node.box_size();
         for j in 0..4 {
-            let (box_min, box_level, cell, solid_angle) = match &split {
-                None => {
-                    let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
-                    let box_min = node.box_min + offset;
-                    (box_min, node.box_level + 1, node.cell, node.solid_angle)
-                }
-                Some(split) => (
-                    node.box_min,
-                    node.box_level,
-                    split.children[j],
-                    split.solid_angles[j],
-                ),
-            };
             emit(Node {
-                id: node.id.child(j),
-                count: counts[j],
-                box_min,
-                box_level,
-                cell,
-                solid_angle,
-                depth: node.depth + 1,
                 areas: areas[j],
+                ..self.child(node, split.as_deref(), j, counts[j])
             });
         }
         spatial
+    }
+
+    /// Child `j` of `node` under `split` (its directional split, `None` for a spatial one)
+    /// holding `count` particles (areas zero): its box and cell.
+    #[inline]
+    fn child(&self, node: &Node, split: Option<&DirectionalSplit>, j: usize, count: u64) -> Node {
+        let (box_min, box_level, cell, solid_angle) = match split {
+            None => {
+                let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * (0.5 * node.box_size());
+                (
+                    node.box_min + offset,
+                    node.box_level + 1,
+                    node.cell,
+                    node.solid_angle,
+                )
+            }
+            Some(split) => (
+                node.box_min,
+                node.box_level,
+                split.children[j],
+                split.solid_angles[j],
+            ),
+        };
+        Node {
+            id: node.id.child(j),
+            count,
+            box_min,
+            box_level,
+            cell,
+            solid_angle,
+            depth: node.depth + 1,
+            areas: [0.0; 3],
+        }
+    }
+
+    /// The counts of `node`'s split (`split`: its directional split, `None` for a spatial
+    /// one), pair by pair. Exact splits of more particles than a categorical or bit-by-bit
+    /// draw takes are a binary tree of binomials (`sampling::pair_totals`, then
+    /// `sampling::divide_pair`): the totals from the node's split stream, each pair's
+    /// division from a stream of its own, so that a query may leave a pair undivided without
+    /// changing the other. The first draws of the three streams are one 4-lane TEA call.
+    fn split_counts(&self, node: &Node, split: Option<&DirectionalSplit>) -> PairCounts {
+        let mode = self.config.multinomial;
+        let (probabilities, draws_all_at_once) = match split {
+            None => ([0.25; 4], node.count <= EQUAL_SPLIT_BY_BITS),
+            Some(split) => (split.probabilities, node.count <= CATEGORICAL_PARTICLES),
+        };
+        if mode != MultinomialMode::Exact || draws_all_at_once {
+            let mut rng = self.stream(node.id, PURPOSE_SPLIT);
+            let counts = match split {
+                None => multinomial4_equal(node.count, mode, &mut rng),
+                Some(_) => multinomial4(node.count, probabilities, mode, &mut rng),
+            };
+            return PairCounts::drawn(counts);
+        }
+        let key = node.id.key(self.config.seed);
+        let rounds = self.config.tea_rounds;
+        // Lane 3 (a third pair's stream) is computed and unused.
+        let purposes = [
+            PURPOSE_SPLIT,
+            PURPOSE_PAIR,
+            PURPOSE_PAIR + 1,
+            PURPOSE_PAIR + 2,
+        ];
+        let [first, left, right, _] = draws_x4(key, purposes, 0, rounds);
+        let mut rng = TeaRng::with_first_draw(key, PURPOSE_SPLIT, rounds, first);
+        PairCounts {
+            totals: pair_totals(node.count, probabilities, &mut rng),
+            pairs: [
+                PairDivision::Pending { first_draw: left },
+                PairDivision::Pending { first_draw: right },
+            ],
+            probabilities,
+            key,
+            rounds,
+        }
     }
 
     /// Tests the children of `parent` (from the top-level cache when it is in it) against the
     /// query and queues those that meet it, with the answers; returns how many were tested.
     /// Those are the nodes Alg. 1 visits: it would pop the disjoint ones and discard them.
     /// Empty children hold nothing for any query, so they are neither tested nor counted.
+    /// A pair of children (0, 1) or (2, 3) that both miss the query is not divided between
+    /// them: min(total, 2) of them count as tested (whether one was empty is not drawn).
     fn split_into(
         &self,
         parent: &QueuedNode,
@@ -475,32 +588,82 @@ impl CountTree {
         queue: &mut Vec<QueuedNode>,
     ) -> u32 {
         let mut tested = 0;
-        let mut answer = |child: &Node, spatial: bool| {
-            if child.count == 0 {
-                return;
-            }
-            let mut queued = QueuedNode {
-                node: *child,
-                ..*parent
-            };
+        let node = &parent.node;
+        // The query's answers for a child (the box at `box_min` of `box_level`, the cell),
+        // the parent's in the dimension the split keeps.
+        let mut answer = |spatial: bool, box_min: DVec2, box_level: u32, cell: &DirectionalCell| {
             if spatial {
-                queued.spatial = memo.overlap_box(child, footprint);
+                let overlap = memo.overlap_box(box_min, box_level, footprint);
+                (overlap, parent.directional)
             } else {
-                queued.directional = memo.classify(&child.cell, conic);
-            }
-            tested += 1;
-            if !(queued.spatial.is_disjoint() || queued.directional == Classification::Disjoint) {
-                queue.push(queued);
+                (parent.spatial, memo.classify(cell, conic))
             }
         };
-        if let Some((children, spatial)) = self.top_levels.get(&parent.node) {
-            for child in children {
-                answer(child, *spatial);
+        let meets = |(spatial, directional): (BoxOverlap, Classification)| {
+            !(spatial.is_disjoint() || directional == Classification::Disjoint)
+        };
+        let queued =
+            |child: Node, (spatial, directional): (BoxOverlap, Classification)| QueuedNode {
+                node: child,
+                spatial,
+                directional,
+            };
+        // Cached or coloured splits: all four counts are drawn (particle areas need them all,
+        // a Dirichlet draw over them).
+        let mut all_drawn = |children: &[Node; 4], spatial: bool| {
+            for child in children.iter().filter(|child| child.count > 0) {
+                tested += 1;
+                let answers = answer(spatial, child.box_min, child.box_level, &child.cell);
+                if meets(answers) {
+                    queue.push(queued(*child, answers));
+                }
             }
-        } else {
-            // Not cached: the split type is known before the children are.
-            let spatial = self.splits_in_space(&parent.node);
-            self.emit_children(&parent.node, |child| answer(&child, spatial));
+        };
+        if let Some((children, spatial)) = self.top_levels.get(node) {
+            all_drawn(children, *spatial);
+            return tested;
+        }
+        let spatial = self.splits_in_space(node);
+        if self.config.colour_channels > 0 {
+            let mut children = [*node; 4];
+            let mut k = 0;
+            self.emit_children(node, |child| {
+                children[k] = child;
+                k += 1;
+            });
+            all_drawn(&children, spatial);
+            return tested;
+        }
+        let split = (!spatial).then(|| self.directional_split(&node.cell));
+        let split = split.as_deref();
+        let mut counts = self.split_counts(node, split);
+        let half = 0.5 * node.box_size();
+        for pair in 0..2 {
+            if counts.totals[pair] == 0 {
+                continue;
+            }
+            let children = [2 * pair, 2 * pair + 1];
+            let pair_answers = children.map(|j| match split {
+                None => {
+                    let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
+                    answer(true, node.box_min + offset, node.box_level + 1, &node.cell)
+                }
+                Some(split) => answer(false, node.box_min, node.box_level, &split.children[j]),
+            });
+            if !(meets(pair_answers[0]) || meets(pair_answers[1])) {
+                tested += counts.totals[pair].min(2) as u32;
+                continue;
+            }
+            let divided = counts.divide(pair);
+            for i in 0..2 {
+                if divided[i] > 0 {
+                    tested += 1;
+                    if meets(pair_answers[i]) {
+                        let child = self.child(node, split, children[i], divided[i]);
+                        queue.push(queued(child, pair_answers[i]));
+                    }
+                }
+            }
         }
         tested
     }
@@ -1293,23 +1456,21 @@ impl QueryMemo {
         answer
     }
 
-    /// How the query's `footprint` meets the box of `node`: the memoized answer if this
-    /// query has tested the box before.
+    /// How the query's `footprint` meets the box at `box_min` of side 2^−`box_level`: the
+    /// memoized answer if this query has tested the box before.
     #[inline]
-    fn overlap_box(&mut self, node: &Node, footprint: &Footprint) -> BoxOverlap {
-        let corner = [node.box_min.x.to_bits(), node.box_min.y.to_bits()];
-        let key = corner[0] ^ corner[1].rotate_left(29) ^ u64::from(node.box_level);
+    fn overlap_box(&mut self, box_min: DVec2, box_level: u32, footprint: &Footprint) -> BoxOverlap {
+        let corner = [box_min.x.to_bits(), box_min.y.to_bits()];
+        let key = corner[0] ^ corner[1].rotate_left(29) ^ u64::from(box_level);
         let entry = &mut self.boxes[memo_slot(key, BOX_MEMO_BITS)];
-        if entry.generation == self.generation
-            && entry.corner == corner
-            && entry.level == node.box_level
+        if entry.generation == self.generation && entry.corner == corner && entry.level == box_level
         {
             return entry.answer;
         }
-        let answer = footprint.overlap_box(node.box_min, node.box_size());
+        let answer = footprint.overlap_box(box_min, box_size_at(box_level));
         *entry = BoxEntry {
             corner,
-            level: node.box_level,
+            level: box_level,
             generation: self.generation,
             answer,
         };
@@ -1362,6 +1523,16 @@ mod tests {
         cell.triangle
             .as_ref()
             .map_or(Classification::Partial, |t| conic.classify(t))
+    }
+
+    /// A lobe of width α, exp(−tan²θ/α²)/(π α² cos²θ): Beckmann's D(m)·cos²θ (the tree
+    /// normalizes a density by its integral, so only the shape matters here).
+    fn beckmann(alpha: f64) -> Arc<NormalDensity> {
+        Arc::new(move |m: DVec3| {
+            let cos2 = m.z * m.z;
+            let tan2 = (1.0 - cos2) / cos2;
+            (-tan2 / (alpha * alpha)).exp() / (std::f64::consts::PI * alpha * alpha * cos2)
+        })
     }
 
     /// The descent of one leaf particle at a time: the reference for the grouped descent.
@@ -1507,7 +1678,7 @@ mod tests {
             let footprint = &footprints[query % 3];
             for _ in 0..2 {
                 for node in &boxes {
-                    let answer = memo.overlap_box(node, footprint);
+                    let answer = memo.overlap_box(node.box_min, node.box_level, footprint);
                     assert_eq!(
                         answer,
                         footprint.overlap_box(node.box_min, node.box_size()),
@@ -1525,13 +1696,6 @@ mod tests {
         // Sixteen materials share one memo (as one scratch serves every material of a scene):
         // the 4096 cells of depth 6 of each, twice over, in the full table and in one of two
         // slots, where materials meet under one label all the time.
-        let beckmann = |alpha: f64| -> Arc<NormalDensity> {
-            Arc::new(move |m: DVec3| {
-                let cos2 = m.z * m.z;
-                let tan2 = (1.0 - cos2) / cos2;
-                (-tan2 / (alpha * alpha)).exp() / (std::f64::consts::PI * alpha * alpha * cos2)
-            })
-        };
         let trees: Vec<CountTree> = (0..16)
             .map(|k| {
                 let alpha = 0.05 + 0.05 * f64::from(k);
@@ -1555,6 +1719,140 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A query divides only the pairs of children it needs: dividing one pair alone, or the
+    /// pairs in either order, gives the counts of the whole split (each pair has its own
+    /// stream), over spatial and directional splits of 10 to 10⁹ particles.
+    #[test]
+    fn pairs_divided_alone_are_the_whole_splits_pairs() {
+        let density = beckmann(0.1);
+        let config = CountTreeConfig {
+            particles: 1_000_000_000,
+            cached_levels: 0,
+            ..CountTreeConfig::default()
+        };
+        let tree = CountTree::new(config, density).expect("valid");
+        let (mut level, mut binary_splits) = (vec![tree.root()], [0; 2]);
+        for _ in 0..12 {
+            let mut next = Vec::new();
+            for node in &level {
+                let mut whole = Vec::new();
+                let spatial = tree.emit_children(node, |child| whole.push(child));
+                let split = (!spatial).then(|| tree.directional_split(&node.cell));
+                let counts = |k: usize| [whole[2 * k].count, whole[2 * k + 1].count];
+                for order in [[0, 1], [1, 0]] {
+                    let mut pairs = tree.split_counts(node, split.as_deref());
+                    assert_eq!(
+                        pairs.divide(order[0]),
+                        counts(order[0]),
+                        "node {:?}",
+                        node.id
+                    );
+                    assert_eq!(
+                        pairs.divide(order[1]),
+                        counts(order[1]),
+                        "node {:?}",
+                        node.id
+                    );
+                }
+                let drawn_at_once = if spatial {
+                    EQUAL_SPLIT_BY_BITS
+                } else {
+                    CATEGORICAL_PARTICLES
+                };
+                binary_splits[usize::from(spatial)] += u32::from(node.count > drawn_at_once);
+                // Follow the fullest child and one other (a few hundred nodes in all).
+                whole.sort_by_key(|child| std::cmp::Reverse(child.count));
+                next.extend(whole.into_iter().take(2).filter(|child| child.count > 10));
+            }
+            level = next;
+        }
+        assert!(
+            binary_splits[0] > 20 && binary_splits[1] > 20,
+            "directional and spatial splits drawn as pairs: {binary_splits:?}"
+        );
+    }
+
+    /// The splits a query draws pair by pair (three streams per node) have the multinomial
+    /// law jointly: the outcomes of 40 000 nodes of 10 particles under one directional split,
+    /// each node with its own identity, against the multinomial pmf (chi-square over the
+    /// outcomes expected five times or more, the rest pooled; α = 1e-6). Dependent streams
+    /// (the two pairs' divisions sharing their draws) would fail it.
+    #[test]
+    fn splits_drawn_pair_by_pair_are_multinomial() {
+        let density = beckmann(0.5);
+        let tree = CountTree::new(CountTreeConfig::default(), density).expect("valid");
+        // A cell of depth 3 whose split is far from uniform and has no tiny child.
+        let cells = (0..3).fold(vec![DirectionalCell::HEMISPHERE], |cells, _| {
+            cells.iter().flat_map(DirectionalCell::children).collect()
+        });
+        let least = |cell: &DirectionalCell| {
+            let p = tree.directional_split(cell).probabilities;
+            p.into_iter().fold(1.0, f64::min)
+        };
+        let cell = *cells
+            .iter()
+            .filter(|cell| least(cell) < 0.2)
+            .max_by(|a, b| least(a).total_cmp(&least(b)))
+            .expect("cells");
+        let split = tree.directional_split(&cell);
+        let p = split.probabilities;
+        let n = 10u64;
+        let mut ids = vec![NodeId::ROOT];
+        while ids.len() < 40_000 {
+            ids = ids
+                .iter()
+                .flat_map(|id| (0..4).map(|j| id.child(j)))
+                .collect();
+        }
+        let mut observed = std::collections::HashMap::new();
+        for &id in ids.iter().take(40_000) {
+            let node = Node {
+                id,
+                count: n,
+                cell,
+                ..tree.root()
+            };
+            let mut pairs = tree.split_counts(&node, Some(&split));
+            let ([a, b], [c, d]) = (pairs.divide(0), pairs.divide(1));
+            *observed.entry([a, b, c]).or_insert(0u32) += 1;
+            assert_eq!(a + b + c + d, n);
+        }
+        // Every outcome (a, b, c, n − a − b − c) and its multinomial probability.
+        let log_factorial = |k: u64| (1..=k).map(|i| (i as f64).ln()).sum::<f64>();
+        let (mut chi_square, mut bins) = (0.0, 0);
+        let (mut pooled_expected, mut pooled_observed) = (0.0, 0.0);
+        for a in 0..=n {
+            for b in 0..=n - a {
+                for c in 0..=n - a - b {
+                    let d = n - a - b - c;
+                    let ln_pmf = log_factorial(n)
+                        + [(a, p[0]), (b, p[1]), (c, p[2]), (d, p[3])]
+                            .iter()
+                            .map(|&(k, q)| k as f64 * q.ln() - log_factorial(k))
+                            .sum::<f64>();
+                    let expected = 40_000.0 * ln_pmf.exp();
+                    let seen = f64::from(observed.get(&[a, b, c]).copied().unwrap_or(0));
+                    if expected >= 5.0 {
+                        chi_square += (seen - expected).powi(2) / expected;
+                        bins += 1;
+                    } else {
+                        pooled_expected += expected;
+                        pooled_observed += seen;
+                    }
+                }
+            }
+        }
+        chi_square += (pooled_observed - pooled_expected).powi(2) / pooled_expected;
+        // The chi-square quantile at 1 − 1e-6 by Wilson–Hilferty (z = 4.753).
+        let df = f64::from(bins);
+        let critical = df * (1.0 - 2.0 / (9.0 * df) + 4.753 * (2.0 / (9.0 * df)).sqrt()).powi(3);
+        assert!(bins > 30, "{bins} bins, p = {p:?}");
+        assert!(
+            chi_square < critical,
+            "χ² = {chi_square} over {bins} + 1 bins (critical {critical}), p = {p:?}"
+        );
     }
 
     #[test]
