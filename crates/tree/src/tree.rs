@@ -762,7 +762,6 @@ impl CountTree {
                     accumulate(&mut area_sums, node.areas, multiplicity);
                     continue;
                 }
-                let near_uniform = !self.quadrature.has_entry(&node.cell);
                 // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
                 // query: in space they are uniform; in direction the fraction is the overlap's
                 // share of the triangle where p is near-uniform (no table entry, the paper's
@@ -777,10 +776,11 @@ impl CountTree {
                 let mut expected_share = || {
                     self.overlap_share(node, footprint, conic, spatial, directions_inside, cells)
                 };
-                let cheap = near_uniform || directions_inside;
+                // (A table look-up, so only asked when the threshold is positive.)
+                let cheap = || directions_inside || !self.quadrature.has_entry(&node.cell);
                 let descend =
                     scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
-                if threshold > 0.0 && (cheap || descend) {
+                if threshold > 0.0 && (descend || cheap()) {
                     let share = expected_share();
                     if share.deviation(node.count) < threshold {
                         count += node.count as f64 * share.mean;
