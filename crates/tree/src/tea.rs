@@ -242,7 +242,6 @@ mod tests {
         }
     }
 
-    /// Recorded from this implementation when it was checked against the test vector above.
     #[test]
     fn a_stream_with_its_first_draw_given_is_the_stream() {
         let key = [9, 8, 7, 6];
@@ -256,6 +255,7 @@ mod tests {
         }
     }
 
+    /// Recorded from this implementation when it was checked against the test vector above.
     const PINNED: [u64; 3] = [
         17_301_438_558_304_964_667,
         1_580_491_115_515_206_620,

@@ -10,8 +10,9 @@
 //!   split in space  ⇔  E[A(query)] / A(node) < E[σ(query)] / σ(node).
 //! ```
 //!
-//! The children's counts are a multinomial draw from the node's own TEA stream, keyed by the
-//! material seed and the node's identity. A node with at most [`LEAF_PARTICLES`] particles, or
+//! The children's counts are a multinomial draw from the node's own TEA streams, keyed by the
+//! material seed and the node's identity (one stream, or for exact splits of many particles
+//! three: the pairs' totals, then each pair's division). A node with at most [`LEAF_PARTICLES`] particles, or
 //! at the depth guard, is a *leaf*: its particles are placed explicitly, each from its own
 //! stream, uniformly in the box and, in direction, by the same law the splits follow (one
 //! particle descends the directional hierarchy with the split probabilities, then lands
@@ -273,6 +274,23 @@ impl PairCounts {
             probabilities: [0.25; 4],
             key: [0; 4],
             rounds: 0,
+        }
+    }
+
+    /// How many children of `pair`, which both miss the query, count as visited: the
+    /// non-empty ones when the pair's counts are drawn; otherwise its total, at most the
+    /// number of children with a positive probability (whether one of those is empty is
+    /// never drawn).
+    fn undivided_visits(&self, pair: usize) -> u32 {
+        match self.pairs[pair] {
+            PairDivision::Drawn(counts) => counts.iter().map(|&c| u32::from(c > 0)).sum(),
+            PairDivision::Pending { .. } => {
+                let possible = self.probabilities[2 * pair..2 * pair + 2]
+                    .iter()
+                    .map(|&p| u64::from(p > 0.0))
+                    .sum();
+                self.totals[pair].min(possible) as u32
+            }
         }
     }
 
@@ -578,7 +596,8 @@ impl CountTree {
     /// Those are the nodes Alg. 1 visits: it would pop the disjoint ones and discard them.
     /// Empty children hold nothing for any query, so they are neither tested nor counted.
     /// A pair of children (0, 1) or (2, 3) that both miss the query is not divided between
-    /// them: min(total, 2) of them count as tested (whether one was empty is not drawn).
+    /// them when its division is still to be drawn: then min(total, 2) of them count as
+    /// tested (fewer if a child has probability 0; whether one was empty is not drawn).
     fn split_into(
         &self,
         parent: &QueuedNode,
@@ -651,7 +670,7 @@ impl CountTree {
                 Some(split) => answer(false, node.box_min, node.box_level, &split.children[j]),
             });
             if !(meets(pair_answers[0]) || meets(pair_answers[1])) {
-                tested += counts.totals[pair].min(2) as u32;
+                tested += counts.undivided_visits(pair);
                 continue;
             }
             let divided = counts.divide(pair);
@@ -1255,8 +1274,9 @@ struct LeafStream {
 /// the split probabilities. Rescaling spends log₂(1/p_j) of u's 53 bits per level; once the
 /// interval's width (the product of the p_j taken) is below 2⁻²¹, fewer than 32 bits would be
 /// left (the resolution of the particle's position), and u is replaced by the stream's next
-/// draw. Most descents thus take one draw, which a 4-lane TEA call computes for four
-/// particles at once.
+/// draw. Most descents thus take one draw until their final cell (a particle that reaches
+/// one takes two more for its point in it), and a 4-lane TEA call computes the first draws of
+/// four particles at once.
 #[derive(Clone, Debug)]
 struct NormalDescent {
     /// The particle's stream: (leaf key, purpose).
@@ -1771,6 +1791,34 @@ mod tests {
         assert!(
             binary_splits[0] > 20 && binary_splits[1] > 20,
             "directional and spatial splits drawn as pairs: {binary_splits:?}"
+        );
+    }
+
+    /// An undivided pair counts its non-empty children as visited when its counts are known,
+    /// and otherwise at most its total and its children of positive probability.
+    #[test]
+    fn undivided_pairs_count_the_children_that_may_hold_particles() {
+        let drawn = PairCounts::drawn([0, 5, 3, 0]);
+        assert_eq!(
+            [drawn.undivided_visits(0), drawn.undivided_visits(1)],
+            [1, 1]
+        );
+        let pending = |totals: [u64; 2], probabilities: [f64; 4]| PairCounts {
+            totals,
+            pairs: [PairDivision::Pending { first_draw: 0 }; 2],
+            probabilities,
+            key: [0; 4],
+            rounds: 8,
+        };
+        let counts = pending([1, 7], [0.2, 0.3, 0.5, 0.0]);
+        assert_eq!(
+            [counts.undivided_visits(0), counts.undivided_visits(1)],
+            [1, 1]
+        );
+        let counts = pending([9, 0], [0.2, 0.3, 0.25, 0.25]);
+        assert_eq!(
+            [counts.undivided_visits(0), counts.undivided_visits(1)],
+            [2, 0]
         );
     }
 
