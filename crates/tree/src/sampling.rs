@@ -279,12 +279,26 @@ pub const EQUAL_SPLIT_BY_BITS: u64 = 384;
 pub fn multinomial4_equal(n: u64, mode: MultinomialMode, rng: &mut TeaRng) -> [u64; 4] {
     let by_bits = match mode {
         MultinomialMode::Exact => EQUAL_SPLIT_BY_BITS,
-        MultinomialMode::Normal => 8,
+        MultinomialMode::Normal => CATEGORICAL_PARTICLES,
     };
     if n > by_bits {
         return multinomial4(n, [0.25; 4], mode, rng);
     }
     multinomial4_equal_by_bits(n, rng)
+}
+
+/// Whether [`multinomial4_equal`] (`equal`) or [`multinomial4`] splits `n` particles as the
+/// binary tree of binomials ([`pair_totals`], then [`divide_pair`]) rather than particle by
+/// particle or by the normal approximation: a caller that draws the pairs itself, from
+/// streams of its own, asks this so that it agrees with those functions on every other split.
+#[must_use]
+pub fn splits_by_pairs(n: u64, equal: bool, mode: MultinomialMode) -> bool {
+    let drawn_at_once = if equal {
+        EQUAL_SPLIT_BY_BITS
+    } else {
+        CATEGORICAL_PARTICLES
+    };
+    mode == MultinomialMode::Exact && n > drawn_at_once
 }
 
 /// The exact multinomial split of `n` particles among four equally likely children by two

@@ -49,8 +49,8 @@ use crate::ndf::{
 };
 use crate::node::NodeId;
 use crate::sampling::{
-    CATEGORICAL_PARTICLES, EQUAL_SPLIT_BY_BITS, MultinomialMode, dirichlet4, divide_pair,
-    exponential, multinomial4, multinomial4_equal, pair_totals,
+    MultinomialMode, dirichlet4, divide_pair, exponential, multinomial4, multinomial4_equal,
+    pair_totals, splits_by_pairs,
 };
 use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, encrypt, unit_f64, unit_pair};
 
@@ -317,6 +317,13 @@ impl Node {
     }
 }
 
+/// The corner of quarter `j` of `node`'s box (j = column + 2·row), the box of its spatial
+/// child j.
+#[inline]
+fn quarter_min(node: &Node, j: usize) -> DVec2 {
+    node.box_min + DVec2::new((j & 1) as f64, (j >> 1) as f64) * (0.5 * node.box_size())
+}
+
 /// The side of a box at `level`, 2^−level (exact: a power of two built from its exponent bits).
 #[inline]
 fn box_size_at(level: u32) -> f64 {
@@ -520,15 +527,12 @@ impl CountTree {
     #[inline]
     fn child(&self, node: &Node, split: Option<&DirectionalSplit>, j: usize, count: u64) -> Node {
         let (box_min, box_level, cell, solid_angle) = match split {
-            None => {
-                let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * (0.5 * node.box_size());
-                (
-                    node.box_min + offset,
-                    node.box_level + 1,
-                    node.cell,
-                    node.solid_angle,
-                )
-            }
+            None => (
+                quarter_min(node, j),
+                node.box_level + 1,
+                node.cell,
+                node.solid_angle,
+            ),
             Some(split) => (
                 node.box_min,
                 node.box_level,
@@ -556,11 +560,8 @@ impl CountTree {
     /// changing the other. The first draws of the three streams are one 4-lane TEA call.
     fn split_counts(&self, node: &Node, split: Option<&DirectionalSplit>) -> PairCounts {
         let mode = self.config.multinomial;
-        let (probabilities, draws_all_at_once) = match split {
-            None => ([0.25; 4], node.count <= EQUAL_SPLIT_BY_BITS),
-            Some(split) => (split.probabilities, node.count <= CATEGORICAL_PARTICLES),
-        };
-        if mode != MultinomialMode::Exact || draws_all_at_once {
+        let probabilities = split.map_or([0.25; 4], |split| split.probabilities);
+        if !splits_by_pairs(node.count, split.is_none(), mode) {
             let mut rng = self.stream(node.id, PURPOSE_SPLIT);
             let counts = match split {
                 None => multinomial4_equal(node.count, mode, &mut rng),
@@ -656,17 +657,13 @@ impl CountTree {
         let split = (!spatial).then(|| self.directional_split(&node.cell));
         let split = split.as_deref();
         let mut counts = self.split_counts(node, split);
-        let half = 0.5 * node.box_size();
         for pair in 0..2 {
             if counts.totals[pair] == 0 {
                 continue;
             }
             let children = [2 * pair, 2 * pair + 1];
             let pair_answers = children.map(|j| match split {
-                None => {
-                    let offset = DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
-                    answer(true, node.box_min + offset, node.box_level + 1, &node.cell)
-                }
+                None => answer(true, quarter_min(node, j), node.box_level + 1, &node.cell),
                 Some(split) => answer(false, node.box_min, node.box_level, &split.children[j]),
             });
             if !(meets(pair_answers[0]) || meets(pair_answers[1])) {
@@ -1776,12 +1773,9 @@ mod tests {
                         node.id
                     );
                 }
-                let drawn_at_once = if spatial {
-                    EQUAL_SPLIT_BY_BITS
-                } else {
-                    CATEGORICAL_PARTICLES
-                };
-                binary_splits[usize::from(spatial)] += u32::from(node.count > drawn_at_once);
+                let pending = tree.split_counts(node, split.as_deref()).pairs[0];
+                binary_splits[usize::from(spatial)] +=
+                    u32::from(matches!(pending, PairDivision::Pending { .. }));
                 // Follow the fullest child and one other (a few hundred nodes in all).
                 whole.sort_by_key(|child| std::cmp::Reverse(child.count));
                 next.extend(whole.into_iter().take(2).filter(|child| child.count > 10));
