@@ -277,14 +277,20 @@ pub const EQUAL_SPLIT_BY_BITS: u64 = 384;
 /// in [`MultinomialMode::Normal`] (the paper draws particles one by one up to 8). Larger n go
 /// to [`multinomial4`] with p = ¼. The result always sums to `n`.
 pub fn multinomial4_equal(n: u64, mode: MultinomialMode, rng: &mut TeaRng) -> [u64; 4] {
-    let by_bits = match mode {
-        MultinomialMode::Exact => EQUAL_SPLIT_BY_BITS,
-        MultinomialMode::Normal => CATEGORICAL_PARTICLES,
-    };
-    if n > by_bits {
+    if n > drawn_particle_by_particle(true, mode) {
         return multinomial4(n, [0.25; 4], mode, rng);
     }
     multinomial4_equal_by_bits(n, rng)
+}
+
+/// The largest split that [`multinomial4_equal`] (`equal`) or [`multinomial4`] draws particle
+/// by particle (two bits or one categorical draw each); larger ones are drawn as `mode` says.
+fn drawn_particle_by_particle(equal: bool, mode: MultinomialMode) -> u64 {
+    if equal && mode == MultinomialMode::Exact {
+        EQUAL_SPLIT_BY_BITS
+    } else {
+        CATEGORICAL_PARTICLES
+    }
 }
 
 /// Whether [`multinomial4_equal`] (`equal`) or [`multinomial4`] splits `n` particles as the
@@ -293,12 +299,7 @@ pub fn multinomial4_equal(n: u64, mode: MultinomialMode, rng: &mut TeaRng) -> [u
 /// streams of its own, asks this so that it agrees with those functions on every other split.
 #[must_use]
 pub fn splits_by_pairs(n: u64, equal: bool, mode: MultinomialMode) -> bool {
-    let drawn_at_once = if equal {
-        EQUAL_SPLIT_BY_BITS
-    } else {
-        CATEGORICAL_PARTICLES
-    };
-    mode == MultinomialMode::Exact && n > drawn_at_once
+    mode == MultinomialMode::Exact && n > drawn_particle_by_particle(equal, mode)
 }
 
 /// The exact multinomial split of `n` particles among four equally likely children by two

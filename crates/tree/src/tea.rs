@@ -60,6 +60,21 @@ pub fn encrypt_x4(mut v0: u32x4, mut v1: u32x4, key: [u32; 4], rounds: u32) -> (
     (v0, v1)
 }
 
+/// A draw's 64 bits from its encrypted block (v0, v1): v0 high, v1 low.
+#[inline]
+fn join(v0: u32, v1: u32) -> u64 {
+    (u64::from(v0) << 32) | u64::from(v1)
+}
+
+/// Draw `draw` of the stream (`key`, `purpose`), one scalar TEA block: the same as that draw
+/// of `TeaRng::new(key, purpose, rounds)`, for a caller that needs one draw at a known index.
+#[inline]
+#[must_use]
+pub fn draw_at(key: [u32; 4], purpose: u32, draw: u32, rounds: u32) -> u64 {
+    let (a, b) = encrypt(draw, purpose, key, rounds);
+    join(a, b)
+}
+
 /// Draw `draw` of the four streams (`key`, `purposes[i]`), in one 4-lane call: lane i equals
 /// that draw of `TeaRng::new(key, purposes[i], rounds)`.
 #[inline]
@@ -67,7 +82,7 @@ pub fn encrypt_x4(mut v0: u32x4, mut v1: u32x4, key: [u32; 4], rounds: u32) -> (
 pub fn draws_x4(key: [u32; 4], purposes: [u32; 4], draw: u32, rounds: u32) -> [u64; 4] {
     let (a, b) = encrypt_x4(u32x4::splat(draw), u32x4::new(purposes), key, rounds);
     let (a, b) = (a.to_array(), b.to_array());
-    core::array::from_fn(|i| (u64::from(a[i]) << 32) | u64::from(b[i]))
+    core::array::from_fn(|i| join(a[i], b[i]))
 }
 
 /// Maps 53 random bits to a uniform number in [0, 1).
@@ -159,7 +174,7 @@ impl TeaRng {
         let counters = u32x4::new([c, c.wrapping_add(1), c.wrapping_add(2), c.wrapping_add(3)]);
         let (a, b) = encrypt_x4(counters, u32x4::splat(self.purpose), self.key, self.rounds);
         let (a, b) = (a.to_array(), b.to_array());
-        self.buffer = core::array::from_fn(|i| (u64::from(a[i]) << 32) | u64::from(b[i]));
+        self.buffer = core::array::from_fn(|i| join(a[i], b[i]));
         self.counter = c.wrapping_add(4);
         self.buffered = 4;
     }
@@ -238,7 +253,9 @@ mod tests {
         let mut rng = TeaRng::new(key, 7, DEFAULT_ROUNDS);
         for i in 0..10 {
             let (a, b) = encrypt(i, 7, key, DEFAULT_ROUNDS);
-            assert_eq!(rng.next_bits(), (u64::from(a) << 32) | u64::from(b));
+            let bits = rng.next_bits();
+            assert_eq!(bits, (u64::from(a) << 32) | u64::from(b));
+            assert_eq!(bits, draw_at(key, 7, i, DEFAULT_ROUNDS));
         }
     }
 

@@ -52,7 +52,7 @@ use crate::sampling::{
     MultinomialMode, dirichlet4, divide_pair, exponential, multinomial4, multinomial4_equal,
     pair_totals, splits_by_pairs,
 };
-use crate::tea::{DEFAULT_ROUNDS, TeaRng, draws_x4, encrypt, unit_f64, unit_pair};
+use crate::tea::{DEFAULT_ROUNDS, TeaRng, draw_at, draws_x4, unit_f64, unit_pair};
 
 /// Nodes with at most this many particles place them explicitly (leaves). A leaf costs one
 /// visit and a few ns per particle (one 4-lane TEA call per four positions, the normal only
@@ -1306,9 +1306,9 @@ impl NormalDescent {
 
     /// The stream's next draw as a uniform number in [0, 1).
     fn fresh_uniform(&mut self, stream: &LeafStream) -> f64 {
-        let (a, b) = encrypt(self.next_draw, self.purpose, stream.key, stream.rounds);
+        let bits = draw_at(stream.key, self.purpose, self.next_draw, stream.rounds);
         self.next_draw += 1;
-        unit_f64((u64::from(a) << 32) | u64::from(b))
+        unit_f64(bits)
     }
 
     /// The child (0–3) the descent takes under split `probabilities` (summing to 1 up to
