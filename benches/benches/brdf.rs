@@ -1,10 +1,9 @@
 //! Per-call costs of glint-brdf: smooth eval, multiscale eval at the Table 1 settings, the glint
-//! sampler and its 64-point pdf.
+//! sampler (direction, f̂ and pdf, as a renderer's `sample` pays them) and its 64-point pdf.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glint_benches::{TABLE1, table1_brdf_workload};
-use glint_brdf::Bxdf;
-use glint_tree::QueryScratch;
+use glint_brdf::{Bxdf, QueryScratch};
 use std::hint::black_box;
 
 const POOL: usize = 1024;
@@ -21,11 +20,13 @@ fn brdf(c: &mut Criterion) {
         })
     });
     let mut i = 0;
+    let mut scratch = QueryScratch::new();
     group.bench_function("glint_sample", |b| {
         b.iter(|| {
             i = (i + 1) % POOL;
             let (wi, _, f) = &first_queries[i];
-            first.sample(black_box(*wi), f.center().x, [f.center().y, 0.37])
+            let u = [f.center().x, f.center().y, 0.37, 0.61];
+            first.at(f, &mut scratch).sample(black_box(*wi), u)
         })
     });
     let mut i = 0;
@@ -33,11 +34,10 @@ fn brdf(c: &mut Criterion) {
         b.iter(|| {
             i = (i + 1) % POOL;
             let (wi, wo, _) = &first_queries[i];
-            first.pdf(black_box(*wi), *wo)
+            first.sampling_pdf(black_box(*wi), *wo)
         })
     });
-    // What a multiscale evaluation adds to its tree query: the conic (every query) and the
-    // Eq. 5 factor (queries that find particles).
+    // What a multiscale evaluation adds to its tree query: the conic (every query).
     let cone = glint_sphere::ConeRadius::new(first.parameters().gamma).expect("valid cone");
     let mut i = 0;
     group.bench_function("eval_overhead_conic", |b| {
@@ -45,14 +45,6 @@ fn brdf(c: &mut Criterion) {
             i = (i + 1) % POOL;
             let (wi, wo, _) = &first_queries[i];
             glint_sphere::SphericalConic::with_cone(black_box(*wi), *wo, &cone)
-        })
-    });
-    let mut i = 0;
-    group.bench_function("eval_overhead_factor", |b| {
-        b.iter(|| {
-            i = (i + 1) % POOL;
-            let (wi, wo, f) = &first_queries[i];
-            first.f_hat_from_d_hat(black_box(*wi), *wo, glam::DVec3::splat(1e-6), f.area())
         })
     });
     for setting in &TABLE1 {
@@ -63,7 +55,7 @@ fn brdf(c: &mut Criterion) {
             b.iter(|| {
                 i = (i + 1) % POOL;
                 let (wi, wo, f) = &queries[i];
-                brdf.eval_at(black_box(*wi), *wo, Some(f), &mut scratch)
+                brdf.at(f, &mut scratch).eval(black_box(*wi), *wo)
             })
         });
     }

@@ -450,7 +450,7 @@ pub fn skipped_query_particles(
             DVec2::new(0.0, 1e-3),
         )
         .expect("finite footprint");
-        let lean = skipping.eval_footprint(wi, wo, &footprint, &mut scratch);
+        let lean = skipping.at(&footprint, &mut scratch).evaluate(wi, wo);
         match lean.negligible {
             Some(bound) => {
                 let skipped_answer_is_empty = lean.count == 0.0
@@ -460,10 +460,10 @@ pub fn skipped_query_particles(
                 out.mismatched += usize::from(!skipped_answer_is_empty);
                 out.skipped += 1;
                 out.bound_sum += bound;
-                out.found += exact.eval_footprint(wi, wo, &footprint, &mut scratch).count;
+                out.found += exact.at(&footprint, &mut scratch).evaluate(wi, wo).count;
             }
             None if near_highlight => {
-                let full = exact.eval_footprint(wi, wo, &footprint, &mut scratch);
+                let full = exact.at(&footprint, &mut scratch).evaluate(wi, wo);
                 out.mismatched += usize::from(lean != full);
             }
             None => {}

@@ -5,13 +5,12 @@ use std::f64::consts::PI;
 
 use glam::{DVec2, DVec3};
 use glint_brdf::{
-    Bxdf, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MicrofacetBrdf,
-    NormalSampling,
+    Bxdf, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters, Microfacet,
+    MicrofacetBrdf, NormalSampling, QueryScratch,
 };
 use glint_tests::SplitMix64;
 use glint_tests::geometry::direction;
 use glint_tests::sampling::{hemisphere_integral, sampler_cases, sidak, test_sampler};
-use glint_tree::{Footprint, QueryScratch};
 
 fn distributions() -> Vec<Microfacet> {
     let mut all = Vec::new();
@@ -65,7 +64,7 @@ fn smooth_brdf_is_reciprocal_and_conserves_energy() {
             let mut sum = 0.0;
             let n = 40_000;
             for _ in 0..n {
-                if let Some(s) = brdf.sample(wi, 0.5, [rng.uniform(), rng.uniform()]) {
+                if let Some(s) = brdf.sample(wi, [rng.uniform(), rng.uniform()]) {
                     sum += s.weight.x;
                 }
             }
@@ -87,7 +86,7 @@ fn samplers_match_their_pdfs() {
     let cases = sampler_cases();
     let threshold = sidak(0.01, cases.len());
     for (i, case) in cases.iter().enumerate() {
-        let samples = if case.glint { 100_000 } else { 200_000 };
+        let samples = if case.is_glint() { 100_000 } else { 200_000 };
         let outcome = test_sampler(case, samples, 7 + i as u64);
         let name = &case.name;
         assert!(
@@ -164,11 +163,12 @@ fn discrete_brdf_converges_to_the_smooth_one() {
                 DVec2::new(0.0, 1e-3),
             )
             .unwrap();
-            let e = brdf.evaluate(wi, wo, &f, &mut scratch);
-            sum += e.f_hat.x;
-            sum2 += e.f_hat.x * e.f_hat.x;
-            expected = e.f_smooth.x;
-            expected_count += e.expected_count;
+            let bxdf = brdf.at(&f, &mut scratch);
+            let f_hat = bxdf.eval(wi, wo).x;
+            sum += f_hat;
+            sum2 += f_hat * f_hat;
+            expected = brdf.smooth().eval(wi, wo).x;
+            expected_count += bxdf.expected_count(wi, wo);
         }
         let n = f64::from(queries);
         let mean = sum / n;
@@ -197,7 +197,7 @@ fn discrete_brdf_converges_to_the_smooth_one() {
                 DVec2::new(0.0, 1e-3),
             )
             .unwrap();
-            brdf.evaluate(wi, wo, &f, &mut scratch).count == 0.0
+            brdf.at(&f, &mut scratch).evaluate(wi, wo).count == 0.0
         })
         .count();
     assert!(zeros > 450, "{zeros} of 500 footprints saw nothing");
@@ -262,15 +262,19 @@ fn bad_parameters_are_named() {
         (DVec3::new(f64::NAN, 0.0, 1.0), DVec3::Z),
         (DVec3::Z, DVec3::new(0.0, 1.0, -1e-9)),
     ] {
-        let e = brdf.evaluate(wi, wo, &f, &mut scratch);
-        assert_eq!(e.f_hat, DVec3::ZERO);
-        assert_eq!(brdf.pdf(wi, wo), 0.0);
+        let bxdf = brdf.at(&f, &mut scratch);
+        assert_eq!(bxdf.evaluate(wi, wo).f_hat, DVec3::ZERO);
+        assert_eq!(bxdf.eval(wi, wo), DVec3::ZERO);
+        assert_eq!(bxdf.pdf(wi, wo), 0.0);
+        assert_eq!(bxdf.expected_count(wi, wo), 0.0);
     }
 }
 
-/// The renderer's lean call and the full evaluation agree bit for bit.
+/// The footprint-bound BxDF is one model: `eval` is `evaluate`'s f̂, whose count is the tree's
+/// own query of the conic; `sample` draws the material's glint sampler's direction and weighs
+/// it with f̂ (not the smooth BRDF) and the sampler's pdf.
 #[test]
-fn lean_and_full_evaluation_agree() {
+fn the_bound_bxdf_is_the_glint_model() {
     let d = Microfacet::new(DistributionKind::Ggx, 0.2, 0.3).unwrap();
     let mut parameters = GlintParameters::new(d);
     parameters.particles = 50_000_000;
@@ -281,8 +285,9 @@ fn lean_and_full_evaluation_agree() {
     };
     let brdf = DiscreteBrdf::new(parameters).unwrap();
     let mut scratch = QueryScratch::new();
+    let mut tree_scratch = QueryScratch::new();
     let mut rng = SplitMix64::new(5);
-    let mut nonzero = 0;
+    let (mut nonzero, mut sampled_glints) = (0, 0);
     for _ in 0..300 {
         let wi = direction(rng.uniform() * 1.2, rng.uniform() * 2.0 * PI);
         let m = d.sample_normal([rng.uniform(), rng.uniform()]);
@@ -293,10 +298,31 @@ fn lean_and_full_evaluation_agree() {
             DVec2::new(0.0, 2e-3),
         )
         .unwrap();
-        let full = brdf.evaluate(wi, wo, &f, &mut scratch).f_hat;
-        assert_eq!(brdf.eval_at(wi, wo, Some(&f), &mut scratch), full);
-        nonzero += usize::from(full != DVec3::ZERO);
+        let bxdf = brdf.at(&f, &mut scratch);
+        let e = bxdf.evaluate(wi, wo);
+        assert_eq!(bxdf.eval(wi, wo), e.f_hat);
+        if wo.z > 0.0 {
+            // The conic as the material builds it (γ's trigonometry computed once).
+            let cone = glint_sphere::ConeRadius::new(parameters.gamma).unwrap();
+            let conic = glint_sphere::SphericalConic::with_cone(wi, wo, &cone).unwrap();
+            let direct = brdf.tree().query(&f, &conic, &mut tree_scratch);
+            assert_eq!(e.count, direct.count);
+            assert_eq!(e.d_hat.to_array(), direct.d_hat);
+            assert_eq!(e.nodes_visited, direct.nodes_visited);
+        }
+        nonzero += usize::from(e.f_hat != DVec3::ZERO);
+        let u = [rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform()];
+        if let Some(s) = bxdf.sample(wi, u) {
+            assert_eq!(Some(s.wo), brdf.sample_direction(wi, u));
+            assert_eq!(s.f, bxdf.eval(wi, s.wo));
+            assert_eq!(s.pdf, brdf.sampling_pdf(wi, s.wo));
+            assert_eq!(s.pdf, bxdf.pdf(wi, s.wo));
+            assert_eq!(s.weight, s.f * (s.wo.z / s.pdf));
+            sampled_glints += usize::from(s.f != DVec3::ZERO);
+        }
     }
+    // The sampler follows the lobe, so some sampled directions meet flakes.
+    assert!(sampled_glints > 5, "{sampled_glints}");
     assert!(nonzero > 10);
 }
 
@@ -364,6 +390,7 @@ fn particle_density_bound_holds_and_is_attained() {
 fn expected_count_bound_bounds_the_expected_count() {
     let mut rng = SplitMix64::new(23);
     let mut tightest: f64 = 0.0;
+    let mut scratch = QueryScratch::new();
     for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
         for (ax, ay, gamma_deg) in [
             (0.1, 0.1, 0.5),
@@ -398,7 +425,9 @@ fn expected_count_bound_bounds_the_expected_count() {
                 )
                 .unwrap();
                 let conic = glint_sphere::SphericalConic::new(wi, wo, parameters.gamma).unwrap();
-                let bound = brdf.expected_count_bound(&footprint, &conic);
+                let bound = brdf
+                    .at(&footprint, &mut scratch)
+                    .expected_count_bound(wi, wo);
                 assert!(bound >= 0.0 && !bound.is_nan(), "{bound}");
                 let scale = parameters.particles as f64 * footprint.area();
                 let (integral, error) = glint_tests::counts::conic_integral_by_sampling(
@@ -420,9 +449,9 @@ fn expected_count_bound_bounds_the_expected_count() {
     assert!(tightest > 0.05, "{tightest}");
     let d = Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap();
     let brdf = DiscreteBrdf::new(GlintParameters::new(d)).unwrap();
-    let conic = glint_sphere::SphericalConic::new(DVec3::Z, DVec3::Z, 0.01).unwrap();
     let footprint = Footprint::new(DVec2::ZERO, DVec2::X, DVec2::Y).unwrap();
-    assert_eq!(brdf.expected_count_bound(&footprint, &conic), f64::INFINITY);
+    let bxdf = brdf.at(&footprint, &mut scratch);
+    assert_eq!(bxdf.expected_count_bound(DVec3::Z, DVec3::Z), f64::INFINITY);
 }
 
 /// Queries skipped by `negligible_count` = ½, traversed anyway: the particles they hold stay

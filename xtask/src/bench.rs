@@ -81,9 +81,12 @@ const TREE_BENCHMARKS: [(&str, &str); 14] = [
 ];
 
 /// The BRDF benchmarks (besides the per-setting multiscale evals).
-const BRDF_BENCHMARKS: [(&str, &str); 5] = [
+const BRDF_BENCHMARKS: [(&str, &str); 4] = [
     ("smooth_eval", "smooth microfacet BRDF (Eq. 3), Beckmann"),
-    ("glint_sample", "glint sampler: widened α, then the cone"),
+    (
+        "glint_sample",
+        "glint sample: widened α, then the cone; f̂ and the pdf",
+    ),
     (
         "glint_pdf_64",
         "glint sampler pdf, 64-point QMC convolution (target ≤ 2 µs)",
@@ -91,10 +94,6 @@ const BRDF_BENCHMARKS: [(&str, &str); 5] = [
     (
         "eval_overhead_conic",
         "multiscale eval beyond its query: the conic (every query)",
-    ),
-    (
-        "eval_overhead_factor",
-        "multiscale eval beyond its query: Eq. 5's factor (on a hit)",
     ),
 ];
 

@@ -1,22 +1,24 @@
-//! `cargo xtask eval`: the model from any language, as JSON Lines (see DESIGN.md).
+//! `cargo xtask eval`: the model from any language, as JSON Lines (specified in `docs/eval.md`).
 //!
 //! Each input line is one request (`op` = `eval`, `sample` or `pdf`); each output line answers
 //! it, in order. A line that is not valid JSON or holds invalid values yields
 //! `{"error": "..."}` naming the problem; the run goes on and the exit status is non-zero.
 //! Materials are built once per distinct `material` object and reused.
 //!
-//! Beyond DESIGN.md's fields, a material may give `expected_footprint_area` (Eq. 11),
-//! `pdf_points` and `negligible_count` (skip queries whose expected count is provably below it;
-//! default 0, every query traversed). An `eval` answer that was skipped carries
-//! `"negligible_bound"`, the bound on its expected count.
+//! Every answer goes through glint-brdf's public path: `eval` binds the material to the line's
+//! footprint (`DiscreteBrdf::at`) and asks that BxDF for f̂, its statistics and the expected
+//! count; `sample` and `pdf` use the material's glint sampler, which needs no footprint, and
+//! weigh samples with the smooth BRDF.
 
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
 
 use anyhow::Context;
 use glam::{DVec2, DVec3};
-use glint_brdf::{Bxdf, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet};
-use glint_tree::{Footprint, MultinomialMode, QueryScratch};
+use glint_brdf::{
+    Bxdf, BxdfSample, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters,
+    Microfacet, MultinomialMode, QueryScratch,
+};
 use serde_json::{Map, Value, json};
 
 /// Reads requests from `path` (or standard input) and writes answers to standard output.
@@ -105,13 +107,14 @@ impl Evaluator {
                     vector2(request, "duv_dy")?,
                 )
                 .map_err(|e| format!("footprint: {e}"))?;
-                let e = brdf.evaluate(wi, wo, &footprint, &mut self.scratch);
+                let bxdf = brdf.at(&footprint, &mut self.scratch);
+                let e = bxdf.evaluate(wi, wo);
                 let mut answer = json!({
                     "count": e.count,
-                    "expected_count": e.expected_count,
+                    "expected_count": bxdf.expected_count(wi, wo),
                     "d_hat": e.d_hat.x,
                     "f_hat": colour(e.f_hat),
-                    "f_smooth": colour(e.f_smooth),
+                    "f_smooth": colour(brdf.smooth().eval(wi, wo)),
                     "nodes_visited": e.nodes_visited,
                 });
                 if let Some(bound) = e.negligible {
@@ -120,11 +123,11 @@ impl Evaluator {
                 Ok(answer)
             }
             "sample" => {
-                let u = numbers::<3>(request, "u")?;
-                if u.iter().any(|x| !(0.0..1.0).contains(x)) {
-                    return Err("`u` must hold three numbers in [0, 1)".to_owned());
-                }
-                Ok(match brdf.sample(wi, u[2], [u[0], u[1]]) {
+                let u = sample_uniforms(request)?;
+                let sample = brdf.sample_direction(wi, u).and_then(|wo| {
+                    BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
+                });
+                Ok(match sample {
                     Some(s) => {
                         json!({ "wo": [s.wo.x, s.wo.y, s.wo.z], "pdf": s.pdf, "weight": colour(s.weight) })
                     }
@@ -133,7 +136,7 @@ impl Evaluator {
             }
             _ => {
                 let wo = direction(request, "wo")?;
-                Ok(json!({ "pdf": brdf.pdf(wi, wo) }))
+                Ok(json!({ "pdf": brdf.sampling_pdf(wi, wo) }))
             }
         }
     }
@@ -305,6 +308,48 @@ fn vector2(request: &Map<String, Value>, key: &str) -> Result<DVec2, String> {
     Ok(DVec2::from_array(numbers::<2>(request, key)?))
 }
 
+/// The glint sampler's four uniform numbers from a `sample` line's `u`: `[u0, u1, u2, u3]` as
+/// they are, or the three-number form `[u0, u1, u2]`, whose third number's odd and even bits
+/// give the cone's two numbers (the form `eval` accepted first; kept so that its lines keep
+/// their meaning).
+fn sample_uniforms(request: &Map<String, Value>) -> Result<[f64; 4], String> {
+    let given = request
+        .get("u")
+        .and_then(Value::as_array)
+        .map_or(0, Vec::len);
+    let u = if given == 3 {
+        let [u0, u1, u2] = numbers::<3>(request, "u")?;
+        check_uniforms(&[u0, u1, u2])?;
+        let [u2, u3] = split_uniform(u2);
+        [u0, u1, u2, u3]
+    } else {
+        numbers::<4>(request, "u")
+            .map_err(|e| format!("{e} (or 3 in the original form), each in [0, 1)"))?
+    };
+    check_uniforms(&u)?;
+    Ok(u)
+}
+
+fn check_uniforms(u: &[f64]) -> Result<(), String> {
+    if u.iter().any(|x| !(0.0..1.0).contains(x)) {
+        return Err("`u` must hold numbers in [0, 1)".to_owned());
+    }
+    Ok(())
+}
+
+/// Two uniforms from one: the odd and the even bits of its 52-bit mantissa fraction, bit
+/// 2k + 1 being the more significant of each pair (so the first carries the coarse half).
+fn split_uniform(u: f64) -> [f64; 2] {
+    let bits = (u.clamp(0.0, 1.0 - f64::EPSILON) * (1u64 << 52) as f64) as u64;
+    let (mut odd, mut even) = (0u64, 0u64);
+    for k in 0..26 {
+        odd |= ((bits >> (2 * k + 1)) & 1) << k;
+        even |= ((bits >> (2 * k)) & 1) << k;
+    }
+    let scale = 1.0 / (1u64 << 26) as f64;
+    [odd as f64 * scale, even as f64 * scale]
+}
+
 /// A direction, normalized; zero vectors are rejected.
 fn direction(request: &Map<String, Value>, key: &str) -> Result<DVec3, String> {
     let v = DVec3::from_array(numbers::<3>(request, key)?);
@@ -355,6 +400,47 @@ mod tests {
         assert!(values[1].get("negligible_bound").is_none(), "{}", values[1]);
         let message = values[2]["error"].as_str().unwrap_or_default();
         assert!(message.contains("negligible count"), "{message}");
+    }
+
+    #[test]
+    fn split_uniform_gives_two_uniforms() {
+        let [a, b] = split_uniform(0.75);
+        assert!((0.0..1.0).contains(&a) && (0.0..1.0).contains(&b));
+        // 0.75 = 0b11 followed by zeros: the two coarsest bits go one to each half.
+        assert_eq!([a, b], [0.5, 0.5]);
+        // 0.5 + 2⁻³: bits 1 and 3 from the top, both odd-positioned (counting from bit 51).
+        assert_eq!(split_uniform(0.625), [0.75, 0.0]);
+    }
+
+    /// The three-number `u` is the four-number one with its third number split; both forms
+    /// sample, and a fourth number out of [0, 1) is an error.
+    #[test]
+    fn sample_takes_three_or_four_uniforms() {
+        let line = |u: &str| {
+            format!(
+                r#"{{"op": "sample", "material": {MATERIAL}, "wi": [0.2, 0.0, 1.0], "u": {u}}}"#
+            )
+        };
+        let [c0, c1] = split_uniform(0.2);
+        let lines = vec![
+            line("[0.3, 0.6, 0.2]"),
+            line(&format!("[0.3, 0.6, {c0:?}, {c1:?}]")),
+            line("[0.3, 0.6, 0.2, 0.9]"),
+            line("[0.3, 0.6, 0.2, 1.0]"),
+            line("[0.3, 0.6]"),
+        ];
+        let (values, failed) = run_lines(&lines);
+        assert_eq!(failed, 2, "{values:?}");
+        assert!(values[0]["wo"].is_array(), "{}", values[0]);
+        assert_eq!(values[0], values[1]);
+        assert!(values[2]["wo"].is_array() && values[2] != values[0]);
+        for bad in [3, 4] {
+            let message = values[bad]["error"].as_str().unwrap_or_default();
+            assert!(
+                message.contains("`u`") || message.contains("u "),
+                "{message}"
+            );
+        }
     }
 
     #[test]

@@ -9,10 +9,10 @@ use glint_brdf::{
     Bxdf, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MicrofacetBrdf,
     NormalSampling,
 };
+use glint_brdf::{Footprint, QueryScratch};
 use glint_tests::SplitMix64;
 use glint_tests::geometry::direction;
 use glint_tests::sampling::{hemisphere_integral, sampler_cases, sidak, test_sampler};
-use glint_tree::{Footprint, QueryScratch};
 
 use crate::validate::Check;
 
@@ -30,7 +30,11 @@ pub(crate) fn samplers(quick: bool, report: &mut String) -> anyhow::Result<Check
     )?;
     let mut failures = 0;
     for (i, case) in cases.iter().enumerate() {
-        let n = if case.glint { samples / 2 } else { samples };
+        let n = if case.is_glint() {
+            samples / 2
+        } else {
+            samples
+        };
         let outcome = test_sampler(case, n, 91 + i as u64);
         let ok = outcome.p_value > threshold
             && outcome.pdf_integral <= 1.01
@@ -124,12 +128,13 @@ pub(crate) fn convergence(
                 DVec2::new(1e-3, 0.0),
                 DVec2::new(0.0, 1e-3),
             )?;
-            let e = brdf.evaluate(wi, wo, &f, &mut scratch);
-            smooth = e.f_smooth.x;
+            let bxdf = brdf.at(&f, &mut scratch);
+            let e = bxdf.evaluate(wi, wo);
+            smooth = brdf.smooth().eval(wi, wo).x;
             let ratio = e.f_hat.x / smooth;
             sum += ratio;
             sum2 += ratio * ratio;
-            expected += e.expected_count;
+            expected += bxdf.expected_count(wi, wo);
             nodes += f64::from(e.nodes_visited);
         }
         let n = f64::from(queries);

@@ -1,4 +1,4 @@
-//! `cargo xtask validate`, stability suite: DESIGN.md's extremes matrix through the public API
+//! `cargo xtask validate`, stability suite: the matrix of numerical extremes through the public API
 //! of glint-brdf (and so glint-tree and glint-sphere): every combination of distribution,
 //! roughness, cone radius, particle count, direction pair and footprint is evaluated, sampled
 //! and given a pdf. A case fails on a panic, a NaN or infinite output, a negative value, a
@@ -9,8 +9,9 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
 use glam::{DVec2, DVec3};
-use glint_brdf::{Bxdf, DiscreteBrdf, DistributionKind, GlintParameters, Microfacet};
-use glint_tree::{Footprint, QueryScratch};
+use glint_brdf::{
+    Bxdf, DiscreteBrdf, DistributionKind, Footprint, GlintParameters, Microfacet, QueryScratch,
+};
 
 use crate::validate::{Check, parallel_chunks};
 
@@ -154,13 +155,14 @@ fn check_material(
             let case = format!("{label}, {direction_name}, {footprint_name}");
             let started = Instant::now();
             let result = catch_unwind(AssertUnwindSafe(|| -> Result<u32, String> {
-                let e = brdf.evaluate(wi, wo, &footprint, &mut scratch);
+                let bxdf = brdf.at(&footprint, &mut scratch);
+                let e = bxdf.evaluate(wi, wo);
                 let values = [
                     e.f_hat.x,
                     e.f_hat.y,
                     e.f_hat.z,
                     e.count,
-                    e.expected_count,
+                    bxdf.expected_count(wi, wo),
                     e.d_hat.x,
                 ];
                 if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
@@ -172,20 +174,20 @@ fn check_material(
                         e.nodes_visited
                     ));
                 }
-                let f = brdf.eval_at(wi, wo, Some(&footprint), &mut scratch);
+                let f = bxdf.eval(wi, wo);
                 if !f.is_finite() || f.min_element() < 0.0 {
-                    return Err(format!("eval_at gave {f}"));
+                    return Err(format!("eval gave {f}"));
                 }
-                let pdf = brdf.pdf(wi, wo);
+                let pdf = bxdf.pdf(wi, wo);
                 if !pdf.is_finite() || pdf < 0.0 {
                     return Err(format!("pdf gave {pdf}"));
                 }
                 for u in [
-                    [0.0, 0.0, 0.0],
-                    [0.5, 0.25, 0.75],
-                    [0.999_999, 0.999_999, 0.999_999],
+                    [0.0, 0.0, 0.0, 0.0],
+                    [0.5, 0.25, 0.75, 0.125],
+                    [0.999_999, 0.999_999, 0.999_999, 0.999_999],
                 ] {
-                    if let Some(s) = brdf.sample(wi, u[0], [u[1], u[2]]) {
+                    if let Some(s) = bxdf.sample(wi, u) {
                         let ok = s.wo.is_finite()
                             && s.wo.z > 0.0
                             && (s.wo.length() - 1.0).abs() < 1e-9
@@ -236,7 +238,7 @@ pub(crate) fn stability(quick: bool, report: &mut String) -> anyhow::Result<Chec
     writeln!(
         report,
         "\n## Stability: the extremes matrix\n\nEvery combination below through glint-brdf's \
-         public API (`evaluate`, `eval_at`, `pdf`, `sample` at three uniform triples). A case \
+         public API (the footprint-bound BxDF's `evaluate`, `expected_count`, `eval`, `pdf`, and `sample` at three uniform quadruples). A case \
          fails on a panic, a NaN or infinite output, a negative value, a sample below the \
          horizon or not unit, or more nodes than the budget.\n\n\
          | dimension | values |\n|---|---|\n\

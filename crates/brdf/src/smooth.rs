@@ -1,57 +1,12 @@
-//! The BRDF interface and the smooth microfacet BRDF (Eq. 3).
-//!
-//! The interface follows pbrt-v4's BxDF: [`Bxdf::eval`], [`Bxdf::sample`] (from uniform numbers,
-//! not a generator) and [`Bxdf::pdf`]. Directions are unit vectors in the local shading frame
-//! (n = +z), both pointing away from the surface. Invalid directions (non-finite, or at or
-//! below the horizon) give a zero value, a zero pdf and no sample: never NaN.
+//! The smooth microfacet BRDF of Eq. 3: the N → ∞ limit of the glint model, and the model
+//! paths use where no footprint is known.
 
 use glam::DVec3;
 
+use crate::bxdf::{Bxdf, BxdfSample};
 use crate::distribution::{Microfacet, NormalSampling};
 use crate::error::BrdfError;
 use crate::fresnel::Fresnel;
-
-/// A sampled direction.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BxdfSample {
-    /// The sampled outgoing direction (unit, above the horizon).
-    pub wo: DVec3,
-    /// The BRDF value f(ω_i, ω_o) per RGB channel.
-    pub f: DVec3,
-    /// The density of ω_o in solid angle.
-    pub pdf: f64,
-    /// The Monte Carlo weight f·cos θ_o / pdf: the reflected radiance estimate for unit
-    /// incident radiance from ω_o.
-    pub weight: DVec3,
-}
-
-impl BxdfSample {
-    /// The sample of direction `wo` with BRDF value `f` and density `pdf`, or `None` when the
-    /// density is not a positive finite number (the sample could not be weighted).
-    #[must_use]
-    pub fn weighted(wo: DVec3, f: DVec3, pdf: f64) -> Option<Self> {
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        Some(Self {
-            wo,
-            f,
-            pdf,
-            weight: f * (wo.z / pdf),
-        })
-    }
-}
-
-/// A BRDF in the style of pbrt-v4.
-pub trait Bxdf {
-    /// f(ω_i, ω_o) per RGB channel.
-    fn eval(&self, wi: DVec3, wo: DVec3) -> DVec3;
-    /// A direction ω_o for ω_i from the uniform numbers `u_lobe` (selects a lobe where there are
-    /// several) and `u`, or `None` when the sample is invalid (below the horizon).
-    fn sample(&self, wi: DVec3, u_lobe: f64, u: [f64; 2]) -> Option<BxdfSample>;
-    /// The density of `sample` choosing ω_o, in solid angle.
-    fn pdf(&self, wi: DVec3, wo: DVec3) -> f64;
-}
 
 /// Whether a direction is usable: finite and strictly above the horizon.
 pub(crate) fn above_horizon(w: DVec3) -> bool {
@@ -124,6 +79,9 @@ impl MicrofacetBrdf {
 }
 
 impl Bxdf for MicrofacetBrdf {
+    /// Two numbers: the facet normal's.
+    type Uniforms = [f64; 2];
+
     fn eval(&self, wi: DVec3, wo: DVec3) -> DVec3 {
         if !(above_horizon(wi) && above_horizon(wo)) {
             return DVec3::ZERO;
@@ -137,8 +95,8 @@ impl Bxdf for MicrofacetBrdf {
         self.fresnel.evaluate(wi.dot(h)) * (d * g / (4.0 * wi.z * wo.z))
     }
 
-    /// Draws m (from p(m) or the visible normals), reflects ω_i about it; `u_lobe` is unused.
-    fn sample(&self, wi: DVec3, _u_lobe: f64, u: [f64; 2]) -> Option<BxdfSample> {
+    /// Draws m (from p(m) or the visible normals) with `u` and reflects ω_i about it.
+    fn sample(&self, wi: DVec3, u: [f64; 2]) -> Option<BxdfSample> {
         let wo = self.sample_direction(wi, u)?;
         BxdfSample::weighted(wo, self.eval(wi, wo), self.pdf(wi, wo))
     }

@@ -7,7 +7,7 @@
 //! The switch is [`GlintFootprints`].
 
 use glam::{DVec2, DVec3};
-use glint_tree::QueryScratch;
+use glint_brdf::QueryScratch;
 
 use crate::accel::PrimitiveHit;
 use crate::camera::{RayDifferential, texture_footprint};
@@ -15,7 +15,7 @@ use crate::material::{GlintCounters, ShadingContext};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
 use crate::shape::Ray;
-use glint_brdf::discrete::orthonormal_basis;
+use glint_brdf::frame::orthonormal_basis;
 
 /// Which integrator.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -401,8 +401,9 @@ pub fn radiance(
         }
         // Extension: sample the BRDF.
         let u_lobe = sampler.next_1d();
-        let u_dir = sampler.next_2d();
-        let Some(wo) = material.sample_direction(wi, u_lobe, u_dir, surface.uv) else {
+        let [u0, u1] = sampler.next_2d();
+        let [u2, u3] = sampler.next_2d();
+        let Some(wo) = material.sample_direction(wi, u_lobe, [u0, u1, u2, u3], surface.uv) else {
             break;
         };
         let direction = frame.to_world(wo);

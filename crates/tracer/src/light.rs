@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 
 use glam::{DVec2, DVec3};
 
-use glint_brdf::discrete::uniform_in_cone;
+use glint_brdf::cone::uniform_in_cone;
 
 use crate::distribution::Distribution2D;
 use crate::image::RgbImage;

@@ -7,8 +7,7 @@
 use std::sync::Arc;
 
 use glam::{DVec2, DVec3};
-use glint_brdf::{Bxdf, DiscreteBrdf, Fresnel, MicrofacetBrdf};
-use glint_tree::{Footprint, QueryScratch};
+use glint_brdf::{Bxdf, DiscreteBrdf, Footprint, Fresnel, MicrofacetBrdf, QueryScratch};
 use std::f64::consts::PI;
 
 use crate::image::RgbImage;
@@ -226,7 +225,7 @@ impl GlintMaterial {
         let Ok(footprint) = Footprint::new(ctx.uv * s, dx * s, dy * s) else {
             return self.brdf.smooth().eval(wi, wo);
         };
-        let result = self.brdf.eval_footprint(wi, wo, &footprint, ctx.scratch);
+        let result = self.brdf.at(&footprint, ctx.scratch).evaluate(wi, wo);
         ctx.counters.queries += 1;
         ctx.counters.nodes_visited += u64::from(result.nodes_visited);
         ctx.counters.nodes_overlapping += u64::from(result.nodes_overlapping);
@@ -352,7 +351,7 @@ impl Material {
             Self::Diffuse(_) => wo.z / PI,
             Self::Microfacet(brdf) => brdf.pdf(wi, wo),
             Self::Plastic(plastic) => plastic.pdf(wi, wo, uv),
-            Self::Glint(glint) => glint.brdf.pdf(wi, wo),
+            Self::Glint(glint) => glint.brdf.sampling_pdf(wi, wo),
             Self::Mix(parts) => {
                 let total: f64 = parts.iter().map(|(w, _)| *w).sum();
                 if !(total > 0.0) {
@@ -366,13 +365,14 @@ impl Material {
         }
     }
 
-    /// A direction `wo` for `wi` from the uniforms `u_lobe` (chooses a lobe) and `u`, with the
+    /// A direction `wo` for `wi` from the uniforms `u_lobe` (chooses a lobe) and `u` (`u[0..2]`
+    /// the lobe's direction, `u[2..4]` the glint sampler's point in its cone), with the
     /// material's total f and pdf there; `None` when the sample is invalid.
     pub fn sample(
         &self,
         wi: DVec3,
         u_lobe: f64,
-        u: [f64; 2],
+        u: [f64; 4],
         ctx: &mut ShadingContext<'_>,
     ) -> Option<MaterialSample> {
         if !above(wi) {
@@ -393,7 +393,7 @@ impl Material {
         &self,
         wi: DVec3,
         u_lobe: f64,
-        u: [f64; 2],
+        u: [f64; 4],
         uv: DVec2,
     ) -> Option<(DVec3, f64)> {
         if !above(wi) {
@@ -411,21 +411,21 @@ impl Material {
         &self,
         wi: DVec3,
         u_lobe: f64,
-        u: [f64; 2],
+        u: [f64; 4],
         uv: DVec2,
     ) -> Option<DVec3> {
         let wo = match self {
-            Self::Diffuse(_) => sample_cosine_hemisphere(u),
-            Self::Microfacet(brdf) => brdf.sample_direction(wi, u)?,
+            Self::Diffuse(_) => sample_cosine_hemisphere([u[0], u[1]]),
+            Self::Microfacet(brdf) => brdf.sample_direction(wi, [u[0], u[1]])?,
             Self::Plastic(plastic) => {
                 let p = plastic.coat_probability(wi, uv);
                 if u_lobe < p {
-                    plastic.coat.sample_direction(wi, u)?
+                    plastic.coat.sample_direction(wi, [u[0], u[1]])?
                 } else {
-                    sample_cosine_hemisphere(u)
+                    sample_cosine_hemisphere([u[0], u[1]])
                 }
             }
-            Self::Glint(glint) => glint.brdf.sample_direction(wi, u_lobe, u)?,
+            Self::Glint(glint) => glint.brdf.sample_direction(wi, u)?,
             Self::Mix(parts) => {
                 let total: f64 = parts.iter().map(|(w, _)| *w).sum();
                 if !(total > 0.0) {
@@ -542,8 +542,8 @@ mod tests {
                 let mut rng = glint_tests::SplitMix64::new(99u64 + k as u64);
                 let mut next = move || rng.uniform();
                 for _ in 0..samples {
-                    let (a, b, c) = (next(), next(), next());
-                    if let Some(s) = material.sample(wi, a, [b, c], &mut ctx) {
+                    let (a, u) = (next(), [next(), next(), next(), next()]);
+                    if let Some(s) = material.sample(wi, a, u, &mut ctx) {
                         estimate += s.f * s.wo.z / s.pdf;
                         let again = material.pdf(wi, s.wo, ctx.uv);
                         assert!((again - s.pdf).abs() <= 1e-12 * s.pdf);

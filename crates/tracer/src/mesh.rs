@@ -187,7 +187,7 @@ impl Mesh {
                 (duv1.x * dp2 - duv2.x * dp1) / det,
             )
         } else {
-            glint_brdf::discrete::orthonormal_basis(geometric_normal)
+            glint_brdf::frame::orthonormal_basis(geometric_normal)
         };
         let shading_normal = if self.normals.is_empty() {
             geometric_normal

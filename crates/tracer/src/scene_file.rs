@@ -10,9 +10,8 @@ use std::sync::Arc;
 use glam::{DAffine3, DQuat, DVec2, DVec3};
 use glint_brdf::{
     DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MicrofacetBrdf,
-    NormalSampling,
+    MultinomialMode, NormalSampling,
 };
-use glint_tree::MultinomialMode;
 use serde::Deserialize;
 
 use crate::accel::{Accelerator, Geometry, Primitive};

@@ -1,0 +1,56 @@
+//! The BxDF interface, in the style of pbrt-v4: [`Bxdf::eval`], [`Bxdf::sample`] (from uniform
+//! numbers, not a generator) and [`Bxdf::pdf`].
+//!
+//! Directions are unit vectors in the local shading frame (n = +z), both pointing away from
+//! the surface: ω_i toward the viewer, ω_o toward the light (every BRDF here is reciprocal, so
+//! the order only matters for sampling, which draws ω_o given ω_i). Invalid directions
+//! (non-finite, or at or below the horizon) give a zero value, a zero pdf and no sample: never
+//! NaN.
+
+use glam::DVec3;
+
+/// A sampled direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BxdfSample {
+    /// The sampled outgoing direction (unit, above the horizon).
+    pub wo: DVec3,
+    /// The BRDF value f(ω_i, ω_o) per RGB channel.
+    pub f: DVec3,
+    /// The density of ω_o in solid angle.
+    pub pdf: f64,
+    /// The Monte Carlo weight f·cos θ_o / pdf: the reflected radiance estimate for unit
+    /// incident radiance from ω_o.
+    pub weight: DVec3,
+}
+
+impl BxdfSample {
+    /// The sample of direction `wo` with BRDF value `f` and density `pdf`, or `None` when the
+    /// density is not a positive finite number (the sample could not be weighted).
+    #[must_use]
+    pub fn weighted(wo: DVec3, f: DVec3, pdf: f64) -> Option<Self> {
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        Some(Self {
+            wo,
+            f,
+            pdf,
+            weight: f * (wo.z / pdf),
+        })
+    }
+}
+
+/// A BRDF in the style of pbrt-v4.
+pub trait Bxdf {
+    /// The uniform numbers in [0, 1) that one sample uses, `[f64; k]`: exactly as many as the
+    /// sampler consumes, so that a renderer's sample dimensions map one to one.
+    type Uniforms: Copy;
+
+    /// f(ω_i, ω_o) per RGB channel.
+    fn eval(&self, wi: DVec3, wo: DVec3) -> DVec3;
+    /// A direction ω_o for ω_i from the uniform numbers `u`, with f and the density there, or
+    /// `None` when no valid direction is sampled (below the horizon, zero density).
+    fn sample(&self, wi: DVec3, u: Self::Uniforms) -> Option<BxdfSample>;
+    /// The density of `sample` choosing ω_o, in solid angle.
+    fn pdf(&self, wi: DVec3, wo: DVec3) -> f64;
+}
