@@ -4,6 +4,7 @@
 
 mod brdf;
 mod sphere;
+mod stability;
 mod tree;
 
 /// Counts heap allocations per thread, so a test can assert that queries allocate nothing.

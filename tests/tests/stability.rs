@@ -1,0 +1,265 @@
+//! Value stability of the particle set, in the style of rand_distr's value-stability tests.
+//!
+//! The particles are never stored: they are a function of the material (N, D, seed, the
+//! expected query statistics of Eq. 11) through the count tree's seeded draws. A change to the
+//! tree's streams, split choice, splits, leaves or normal descent changes every glint pattern
+//! a user has rendered. These pins make such a change visible and deliberate: a commit that
+//! changes the particle set updates [`PINNED`] in the same commit (the failure message prints
+//! the new table) and says why in CHANGELOG.md.
+//!
+//! The queries cover both split kinds (footprints smaller and larger than Eq. 11 plans for),
+//! leaves (a few hundred particles in the footprint, and sparse materials), exact evaluation
+//! and ε > 0, the normal approximation of the multinomial, coloured particles (per-channel
+//! Dirichlet areas, Fig. 8), a hyperbolic conic, and footprints that wrap: across the unit
+//! square's edge, far from the origin, and over several tiles.
+
+use glam::{DVec2, DVec3};
+use glint_brdf::{
+    DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters, Microfacet,
+    MultinomialMode, QueryScratch,
+};
+use glint_tests::geometry::direction;
+
+/// One pinned query.
+struct Case {
+    /// What the case covers.
+    name: &'static str,
+    material: fn() -> GlintParameters,
+    uv: [f64; 2],
+    duv_dx: [f64; 2],
+    duv_dy: [f64; 2],
+    /// (θ, φ) of ω_i and ω_o.
+    wi: (f64, f64),
+    wo: (f64, f64),
+}
+
+fn beckmann(alpha: f64) -> GlintParameters {
+    GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, alpha, alpha).unwrap())
+}
+
+fn cases() -> Vec<Case> {
+    let near = |theta: f64| ((theta, 0.3), (theta * 0.9, 0.3 + std::f64::consts::PI));
+    let (wi, wo) = near(0.4);
+    vec![
+        Case {
+            name: "the paper's defaults (N = 10⁶, γ = 1°, ε = 0.1), a 0.03 footprint",
+            material: || beckmann(0.1),
+            uv: [0.3, 0.6],
+            duv_dx: [3e-2, 0.0],
+            duv_dy: [0.0, 3e-2],
+            wi,
+            wo,
+        },
+        Case {
+            name: "exact (ε = 0), a large footprint: spatial splits first, leaves at the end",
+            material: || GlintParameters {
+                epsilon: 0.0,
+                ..beckmann(0.2)
+            },
+            uv: [0.71, 0.13],
+            duv_dx: [2e-2, 3e-3],
+            duv_dy: [-4e-3, 1.5e-2],
+            wi,
+            wo,
+        },
+        Case {
+            name: "N = 10¹², a footprint far below the expected area: directional splits",
+            material: || GlintParameters {
+                particles: 1_000_000_000_000,
+                expected_footprint_area: 1e-4,
+                ..beckmann(0.05)
+            },
+            uv: [0.52, 0.48],
+            duv_dx: [1e-5, 0.0],
+            duv_dy: [0.0, 2e-5],
+            wi: (0.2, 1.0),
+            wo: (0.18, 1.0 + std::f64::consts::PI),
+        },
+        Case {
+            name: "sparse (N = 10⁴, ε = 0): single leaves, GGX",
+            material: || GlintParameters {
+                particles: 10_000,
+                epsilon: 0.0,
+                gamma: 8f64.to_radians(),
+                ..GlintParameters::new(Microfacet::new(DistributionKind::Ggx, 0.3, 0.3).unwrap())
+            },
+            uv: [0.25, 0.25],
+            duv_dx: [0.05, 0.0],
+            duv_dy: [0.0, 0.05],
+            wi: (0.5, 0.0),
+            wo: (0.5, 3.0),
+        },
+        Case {
+            name: "normal approximation of the multinomial, anisotropic, seed 11",
+            material: || GlintParameters {
+                multinomial: MultinomialMode::Normal,
+                seed: 11,
+                particles: 100_000_000,
+                ..GlintParameters::new(
+                    Microfacet::new(DistributionKind::Beckmann, 0.05, 0.2).unwrap(),
+                )
+            },
+            uv: [0.9, 0.05],
+            duv_dx: [3e-3, 0.0],
+            duv_dy: [0.0, 3e-3],
+            wi: (0.6, 0.5),
+            wo: (0.55, 0.5 + std::f64::consts::PI),
+        },
+        Case {
+            name: "coloured particles (Dirichlet areas per channel) with a conductor",
+            material: || GlintParameters {
+                colour_channels: 3,
+                particles: 20_000_000,
+                fresnel: Fresnel::Conductor {
+                    eta: DVec3::new(0.2, 0.9, 1.1),
+                    k: DVec3::new(3.9, 2.4, 2.2),
+                },
+                ..beckmann(0.15)
+            },
+            uv: [0.4, 0.8],
+            duv_dx: [4e-3, 1e-3],
+            duv_dy: [-1e-3, 4e-3],
+            wi,
+            wo,
+        },
+        Case {
+            name: "a footprint across the unit square's corner (wraps in u and v), N = 10⁸",
+            material: || GlintParameters {
+                particles: 100_000_000,
+                ..beckmann(0.1)
+            },
+            uv: [0.9995, 0.0002],
+            duv_dx: [3e-3, 0.0],
+            duv_dy: [0.0, 3e-3],
+            wi,
+            wo,
+        },
+        Case {
+            name: "far from the origin (u = 10⁴ + 0.3, v = −7.4), N = 10⁸",
+            material: || GlintParameters {
+                particles: 100_000_000,
+                ..beckmann(0.1)
+            },
+            uv: [10_000.3, -7.4],
+            duv_dx: [3e-3, 0.0],
+            duv_dy: [0.0, 3e-3],
+            wi,
+            wo,
+        },
+        Case {
+            name: "over several tiles (a 3.2 × 2.1 footprint), N = 10⁴",
+            material: || GlintParameters {
+                particles: 10_000,
+                ..beckmann(0.3)
+            },
+            uv: [0.5, 0.5],
+            duv_dx: [3.2, 0.0],
+            duv_dy: [0.0, 2.1],
+            wi: (0.3, 0.0),
+            wo: (0.3, 3.1),
+        },
+        Case {
+            name: "a hyperbolic conic (ω_i and ω_o near opposite grazing), wide γ",
+            material: || GlintParameters {
+                gamma: 30f64.to_radians(),
+                ..beckmann(0.5)
+            },
+            uv: [0.2, 0.3],
+            duv_dx: [2e-3, 0.0],
+            duv_dy: [0.0, 2e-3],
+            wi: (1.45, 0.0),
+            wo: (1.45, std::f64::consts::PI - 0.05),
+        },
+    ]
+}
+
+/// count, then f̂ per channel, for each case in order.
+const PINNED: [(f64, [f64; 3]); 10] = [
+    (
+        6.0,
+        [7.506622317930054, 7.506622317930054, 7.506622317930054],
+    ),
+    (
+        2.0,
+        [7.217906074932744, 7.217906074932744, 7.217906074932744],
+    ),
+    (
+        5.852438278795313,
+        [31.143445198317558, 31.143445198317558, 31.143445198317558],
+    ),
+    (1.0, [0.73669126463349, 0.73669126463349, 0.73669126463349]),
+    (
+        12.0,
+        [16.62282795059876, 16.62282795059876, 16.62282795059876],
+    ),
+    (
+        1.0,
+        [1.192282347262981, 6.475922238622733, 5.737480434600074],
+    ),
+    (
+        8.0,
+        [10.00882975724007, 10.00882975724007, 10.00882975724007],
+    ),
+    (
+        6.0,
+        [7.506622317930052, 7.506622317930052, 7.506622317930052],
+    ),
+    (
+        56.050808761158756,
+        [0.9123902402670349, 0.9123902402670349, 0.9123902402670349],
+    ),
+    (
+        1.0,
+        [1.044527871544571, 1.044527871544571, 1.044527871544571],
+    ),
+];
+
+#[test]
+fn particle_set_is_pinned() {
+    let cases = cases();
+    assert_eq!(cases.len(), PINNED.len());
+    let mut scratch = QueryScratch::new();
+    let mut measured = Vec::new();
+    for case in &cases {
+        let material = DiscreteBrdf::new((case.material)()).unwrap();
+        let footprint = Footprint::new(
+            DVec2::from_array(case.uv),
+            DVec2::from_array(case.duv_dx),
+            DVec2::from_array(case.duv_dy),
+        )
+        .unwrap();
+        let (wi, wo) = (
+            direction(case.wi.0, case.wi.1),
+            direction(case.wo.0, case.wo.1),
+        );
+        let e = material.at(&footprint, &mut scratch).evaluate(wi, wo);
+        measured.push((e.count, e.f_hat.to_array()));
+    }
+    let table: String = measured
+        .iter()
+        .map(|(count, f)| format!("    ({count:?}, [{:?}, {:?}, {:?}]),\n", f[0], f[1], f[2]))
+        .collect();
+    for ((case, (count, f_hat)), (pinned_count, pinned_f_hat)) in
+        cases.iter().zip(&measured).zip(PINNED)
+    {
+        // Counts are exact; f̂ is pinned to 12 digits (it goes through exp and erf).
+        let f_matches = f_hat
+            .iter()
+            .zip(pinned_f_hat)
+            .all(|(a, b)| (a - b).abs() <= 1e-12 * b.abs());
+        assert!(
+            *count == pinned_count && f_matches,
+            "the particle set changed at \"{}\": count {count} (pinned {pinned_count}), \
+             f̂ {f_hat:?} (pinned {pinned_f_hat:?}).\nIf the change is deliberate, pin the new \
+             values in the same commit and say why in CHANGELOG.md:\n{table}",
+            case.name
+        );
+    }
+    // The pins are not vacuous: every case finds particles.
+    let found = measured.iter().filter(|(count, _)| *count > 0.0).count();
+    assert!(
+        found == cases.len(),
+        "only {found} of {} cases find particles:\n{table}",
+        cases.len()
+    );
+}
