@@ -2,7 +2,7 @@
 //!
 //! Invariant: **benchmarks measure the public APIs on fixed, seeded inputs**, so figures from
 //! two runs (or two machines) time the same work. `cargo xtask bench` runs them and writes the
-//! summary table that the README quotes.
+//! summary table that `docs/performance.md` quotes.
 #![deny(missing_docs)]
 
 use glint_sphere::{Classification, SphericalConic, SphericalTriangle};

@@ -1,7 +1,7 @@
 //! Random configurations of glint-sphere and their brute-force audits.
 //!
-//! A [`ConicCase`] is a conic (ω_i, ω_o, γ) and a triangle, drawn to cover the extremes of
-//! DESIGN.md: γ log-uniform from 0.01° to 60°, directions 1e-6 from the horizon, ω_i = ω_o,
+//! A [`ConicCase`] is a conic (ω_i, ω_o, γ) and a triangle, drawn to cover the numerical
+//! extremes the tests must survive: γ log-uniform from 0.01° to 60°, directions 1e-6 from the horizon, ω_i = ω_o,
 //! ω_i·ω_o at and around −cos γ, ω_i = −ω_o and within 1e-12 of it, triangles from an octant down to 1e-5 rad edges,
 //! count-tree triangles (octants subdivided, vertices on the horizon), triangles dipping below
 //! the horizon, and triangles placed near the conic so that classification is interesting.

@@ -262,7 +262,7 @@ fn overlapping_footprints_are_correlated_by_their_overlap() {
     }
 }
 
-/// The extremes of DESIGN.md through the public API: finite, non-negative, bounded.
+/// The numerical extremes (α, γ, N, directions, footprints) through the public API: finite, non-negative, bounded.
 #[test]
 fn extreme_parameters_give_finite_bounded_answers() {
     let mut scratch = QueryScratch::new();

@@ -10,9 +10,10 @@
 //!   `scenes/assets/`.
 //! - `cargo xtask validate [--quick]`: the validation suites, written as a Markdown report under
 //!   `target/validate/`; exits non-zero when any check fails.
-//! - `cargo xtask eval [FILE]`: the model as JSON Lines (see DESIGN.md), from FILE or stdin.
+//! - `cargo xtask eval [FILE]`: the model as JSON Lines (specified in `docs/eval.md`), from FILE or
+//!   stdin.
 //! - `cargo xtask bench [--quick]`: runs the criterion benchmarks and writes the per-call table
-//!   that the README quotes to `target/bench/summary.md`.
+//!   that `docs/performance.md` quotes to `target/bench/summary.md`.
 
 mod assets;
 mod bench;

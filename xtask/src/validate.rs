@@ -231,7 +231,7 @@ fn membership(sizes: &Sizes, report: &mut String) -> anyhow::Result<Check> {
         report,
         "## Conic membership against the reflection definition (Eq. 7, 8)\n\n\
          {points} directions (half uniform on S², half reflections of ω_i into a cone 1.2γ \
-         around ω_o), over random conics with the extremes of DESIGN.md: {mismatches} \
+         around ω_o), over random conics at the numerical extremes: {mismatches} \
          disagreements.\n"
     )?;
     Ok(Check {

@@ -66,3 +66,8 @@ pub use glam::{DVec2, DVec3};
 pub use glint::{GlintBxdf, GlintEvaluation};
 pub use glint_tree::{Footprint, MultinomialMode, QueryScratch, TreeError};
 pub use smooth::MicrofacetBrdf;
+
+/// The README's example, compiled and run as a doctest so that it stays in step with the API.
+#[doc = include_str!("../../../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

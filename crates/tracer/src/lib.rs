@@ -2,7 +2,7 @@
 //!
 //! **Invariant: this crate contains no glint mathematics; it computes texture-space footprints
 //! from ray differentials and calls glint-brdf.** It renders what the paper's scenes need and
-//! no more (DESIGN.md, "Model only what a scene requires"):
+//! no more:
 //!
 //! - [`scene_file`]: TOML scene files, validated with errors that name the file, the field and
 //!   the problem; [`Scene`] is the built, immutable scene.
@@ -18,6 +18,51 @@
 //!   importance sampling (power heuristic) and Russian roulette.
 //! - [`film`]: pixel filters, tiles rendered in parallel with per-pixel seeded samplers (the
 //!   image is bit-identical for any thread count), EXR and PNG output.
+//!
+//! A glittery floor under a small sphere light, rendered tiny (scene files are documented in
+//! `scenes/README.md`):
+//!
+//! ```
+//! use std::path::Path;
+//! use glint_tracer::{render, scene_file::parse_scene};
+//!
+//! let scene = parse_scene(r#"
+//!     [render]
+//!     resolution = [48, 32]
+//!     spp = 2
+//!     integrator = "direct"
+//!
+//!     [camera]
+//!     position = [0.0, 1.0, 4.0]
+//!     look_at = [0.0, 0.0, 0.0]
+//!     fov = 40
+//!
+//!     [materials.glitter]
+//!     type = "glint"
+//!     distribution = "beckmann"
+//!     alpha = 0.1
+//!     particles = 1e8
+//!     gamma = 1.0
+//!
+//!     [[shapes]]
+//!     type = "rectangle"
+//!     center = [0.0, 0.0, 0.0]
+//!     u = [10.0, 0.0, 0.0]
+//!     v = [0.0, 0.0, -10.0]
+//!     material = "glitter"
+//!
+//!     [[lights]]
+//!     type = "sphere"
+//!     center = [0.0, 1.0, -4.0]
+//!     radius = 0.05
+//!     power = 20.0
+//! "#, Path::new("inline.toml"))?;
+//! let output = render(&scene, &scene.settings, 0.0, &|_, _| {})?;
+//! let statistics = &output.statistics;
+//! assert!(statistics.glint.queries > 0, "the floor is shaded with glint queries");
+//! assert!(output.image.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![deny(missing_docs)]
 
 pub mod accel;
