@@ -54,7 +54,7 @@ pub mod fresnel;
 mod glint;
 mod glint_sampling;
 mod negligible;
-pub mod qmc;
+mod qmc;
 pub mod smooth;
 
 pub use bxdf::{Bxdf, BxdfSample};

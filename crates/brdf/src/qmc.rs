@@ -7,7 +7,7 @@
 
 /// Point `index` of the (0, 2)-sequence, in [0, 1)².
 #[must_use]
-pub fn zero_two_point(index: u32) -> [f64; 2] {
+pub(crate) fn zero_two_point(index: u32) -> [f64; 2] {
     let x = index.reverse_bits();
     let mut y = 0u32;
     let mut direction = 1u32 << 31;
