@@ -18,7 +18,9 @@
 use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic, overlap_solid_angle};
 
-use super::{CountTree, LEAF_PARTICLES, Node, QueryMemo, QueryScratch, quarter_min};
+use super::particles::{LEAF_PARTICLES, Node, quarter_min};
+use super::scratch::QueryMemo;
+use super::{CountTree, QueryScratch};
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
 

@@ -9,7 +9,9 @@
 use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic};
 
-use super::{CountTree, LeafParticle, QueuedNode, box_size_at};
+use super::CountTree;
+use super::particles::{LeafParticle, box_size_at};
+use super::query::QueuedNode;
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
 
@@ -225,8 +227,9 @@ mod tests {
     use super::*;
     use crate::ndf::DirectionalSplit;
     use crate::node::NodeId;
+    use crate::tree::CountTreeConfig;
+    use crate::tree::particles::Node;
     use crate::tree::test_support::{beckmann, classify_cell};
-    use crate::tree::{CountTreeConfig, Node};
 
     #[test]
     fn the_memo_answers_as_the_conic_does_across_queries() {
