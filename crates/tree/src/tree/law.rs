@@ -31,11 +31,10 @@ impl CountTree {
     /// one-point rule elsewhere) to a *final cell* L (edges ≤ [`LEAF_CELL_ARC`], no Alg. 2
     /// entry) and lands uniformly in it, so its density on L is P(L)/σ(L), P(L) the product of
     /// the split probabilities along the path. Where Alg. 2 accepted a cell by δ_abs (the far
-    /// tails) that density can exceed p by large factors (measured up to ~40 for Beckmann
-    /// α = 0.3 at 45°). This enumerates every final cell with positive probability (about
-    /// 2.6·10⁵ for a wide p, 20–40 ms) and compares P(L)/σ(L) with `density_bound(cos θ_near,
-    /// cos θ_far)`, an upper bound on p over the directions whose angle from n lies between
-    /// those of L's circumscribed cap.
+    /// tails) that density can exceed p by large factors. This enumerates every final cell
+    /// with positive probability (hundreds of thousands for a wide p) and compares P(L)/σ(L)
+    /// with `density_bound(cos θ_near, cos θ_far)`, an upper bound on p over the directions
+    /// whose angle from n lies between those of L's circumscribed cap.
     #[must_use]
     pub fn directional_law_excess(
         &self,

@@ -85,6 +85,7 @@ pub(super) fn box_size_at(level: u32) -> f64 {
 }
 
 impl CountTree {
+    /// The TEA stream of node `id` for `purpose` (one of the purposes above).
     fn stream(&self, id: NodeId, purpose: u32) -> TeaRng {
         TeaRng::new(id.key(self.config.seed), purpose, self.config.tea_rounds)
     }

@@ -37,15 +37,14 @@ impl QueryScratch {
 
 /// Answers that recur within one query, memoized. The leaves and directional splits of
 /// different boxes share one directional hierarchy, and the spatial splits of different cells
-/// one hierarchy of boxes, so a query meets the same cells and boxes again: on the glass
-/// Table 1 workload a third of its conic classifications and two thirds of its box overlaps
-/// repeat, on the dense one a fifth and a third. Both tables are direct-mapped; a generation
-/// count tells this query's entries from earlier ones', so a query starts without clearing.
+/// one hierarchy of boxes, so a query meets the same cells and boxes again. Both tables are
+/// direct-mapped; a generation count tells this query's entries from earlier ones', so a query
+/// starts without clearing.
 ///
 /// It also keeps, across queries, the split probabilities of the directional cells below the
-/// material's table of splits that leaf particles descend through (the dense workload computes
-/// 2.8 such splits per query, among some 1000 cells over all its queries): their solid
-/// angles and density values cost more than the rest of the descent step.
+/// material's table of splits that leaf particles descend through: a material's queries keep
+/// meeting the same few of those cells, whose solid angles and density values cost more than
+/// the rest of the descent step.
 #[derive(Debug, Default)]
 pub(super) struct QueryMemo {
     classifications: Vec<ClassificationEntry>,

@@ -17,14 +17,10 @@ use crate::tea::{TeaRng, draws_x4, unit_f64, unit_pair};
 use crate::tree::CountTree;
 use crate::tree::scratch::QueryMemo;
 
-/// Nodes with at most this many particles place them explicitly (leaves). A leaf costs one
-/// visit and a few ns per particle (one 4-lane TEA call per four positions, the normal only
-/// for particles in the footprint); splitting it instead costs a multinomial and four child
-/// tests per level. Measured on the six Table 1 workloads (`profile_queries`): 8, 16, 32 and 64
-/// visit 43–282, 42–239, 33–180 and 33–178 nodes per query, and 32 is the fastest on all six
-/// (5–15% faster than 8; 64 is slower again on three). Rechecked after leaf positions took one
-/// draw and spatial splits two bits per particle: in instructions per query 16 costs 6–12%
-/// more than 32 on the dense and glass workloads, 64 within ±2%.
+/// Nodes with at most this many particles place them explicitly (leaves): up to this size a
+/// leaf's per-particle work (one 4-lane TEA call per four positions, a normal only for the
+/// particles in the footprint) costs less than splitting on (a multinomial and four child
+/// tests per level).
 pub const LEAF_PARTICLES: u64 = 32;
 
 /// A leaf's box is divided into this many sub-boxes per side for placing its particles (16:
