@@ -35,6 +35,8 @@ impl CountTree {
     /// with positive probability (hundreds of thousands for a wide p) and compares P(L)/σ(L)
     /// with `density_bound(cos θ_near, cos θ_far)`, an upper bound on p over the directions
     /// whose angle from n lies between those of L's circumscribed cap.
+    ///
+    /// [`LEAF_CELL_ARC`]: crate::LEAF_CELL_ARC
     #[must_use]
     pub fn directional_law_excess(
         &self,

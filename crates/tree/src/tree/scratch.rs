@@ -187,6 +187,8 @@ impl QueryMemo {
     /// The split probabilities of `cell` (whose `children` the caller has) in `tree`, for a
     /// cell outside the tree's table of splits: remembered from an earlier query, or computed
     /// (and remembered) as [`DirectionalSplit::of`] computes them.
+    ///
+    /// [`DirectionalSplit::of`]: crate::ndf::DirectionalSplit::of
     pub(super) fn split_probabilities(
         &mut self,
         tree: &CountTree,

@@ -1,14 +1,16 @@
 //! A leaf particle's normal (Sec. 3.4).
 //!
 //! The directional law of the tree below a leaf, for one particle: descend the directional
-//! hierarchy with the split probabilities of [`NdfQuadrature::split_probabilities`](crate::ndf::NdfQuadrature::split_probabilities) (the law
+//! hierarchy with the split probabilities of [`NdfQuadrature::split_probabilities`] (the law
 //! of the multinomial splits, one particle at a time) until the cell has no table entry and
-//! its longest edge is below 0.01 rad, then sample the flat triangle uniformly and project
-//! (the projection's non-uniformity there is below 1e-4 relative).
+//! its longest edge is below [`LEAF_CELL_ARC`], then sample the flat triangle uniformly and
+//! project (the projection's non-uniformity there is below 1e-4 relative).
 //!
 //! The descent is by inversion ([`NormalDescent`]), and the particles of a leaf descend
 //! together ([`CountTree::normals_in_conic`]) with the draws each would take alone. The final
 //! cells and the draws are value-stable: see `super`.
+//!
+//! [`NdfQuadrature::split_probabilities`]: crate::ndf::NdfQuadrature::split_probabilities
 
 use glam::DVec3;
 use glint_sphere::{Classification, SphericalConic, SphericalTriangle};
@@ -131,7 +133,7 @@ const ONE_BELOW: f64 = 1.0 - f64::EPSILON / 2.0;
 
 impl NormalDescent {
     /// The descent of the particle with stream `purpose`, whose draws from `next_draw` on are
-    /// unused; `uniform` is set by the caller (draw [`DRAW_DESCENT`]).
+    /// unused; `uniform` is set by the caller (draw `leaf::DRAW_DESCENT`).
     pub(super) fn new(purpose: u32, next_draw: u32) -> Self {
         Self {
             purpose,
