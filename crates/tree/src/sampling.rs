@@ -264,11 +264,8 @@ pub fn multinomial4(n: u64, p: [f64; 4], mode: MultinomialMode, rng: &mut TeaRng
 }
 
 /// The largest split that [`multinomial4_equal`] draws two bits per particle for in
-/// [`MultinomialMode::Exact`]: twelve 64-bit draws, three 4-lane TEA calls. Against the three
-/// conditional binomials it replaces (criterion, `tree/equal_split_*` in `cargo xtask bench`,
-/// measured with the binomials in a sequential chain, before the binary tree): 65 vs 266 ns
-/// at n = 128, 149 vs 239 ns at 384, 234 vs 230 ns at 512. In the count tree a spatial split
-/// switching at 128 or 256 instead measured 0.5% fewer instructions per query on glass.
+/// [`MultinomialMode::Exact`]: up to this size its draws (at most twelve 64-bit ones, three
+/// 4-lane TEA calls) cost less than the three conditional binomials they replace.
 pub const EQUAL_SPLIT_BY_BITS: u64 = 384;
 
 /// Splits `n` particles among four equally likely children (a spatial split of a box into its

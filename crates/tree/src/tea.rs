@@ -105,8 +105,8 @@ pub fn unit_pair(bits: u64) -> [f64; 2] {
 }
 
 /// A counter-mode TEA stream: draw i is `encrypt(i, purpose, key)`. Draws are computed four at
-/// a time by [`encrypt_x4`] (one 4-lane call costs about 1.3 scalar ones) and handed out in
-/// order, so the stream is the same as one scalar call per draw.
+/// a time by [`encrypt_x4`] (one 4-lane call costs little more than a scalar one) and handed
+/// out in order, so the stream is the same as one scalar call per draw.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TeaRng {
     key: [u32; 4],

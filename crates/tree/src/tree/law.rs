@@ -1,0 +1,145 @@
+//! The law the particle set follows, and the expectations it gives: [`CountTree::expected_count`],
+//! N·A·∫p over the conic by the tree's own quadrature (Alg. 2's table, the one-point rule
+//! elsewhere), which is what a count converges to and the scale of Eq. 10 in long queries; and
+//! [`CountTree::directional_law_excess`], how far the directional law of leaf particles (the
+//! split probabilities down to the final cells) exceeds a bound on p, which Alg. 2's δ_abs
+//! allows in the far tails. These read the material's tables; they draw no random numbers.
+
+use glint_sphere::{Classification, OverlapMethod, SphericalConic, overlap_solid_angle};
+
+use super::{CountTree, QueryScratch};
+use crate::footprint::Footprint;
+use crate::ndf::DirectionalCell;
+
+/// How far the tree's directional law exceeds a bound on the density p it approximates
+/// ([`CountTree::directional_law_excess`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectionalLawExcess {
+    /// W = max over final cells L of P(L) / (σ(L)·B_L), B_L the given bound on p over L
+    /// (over cells with B_L > 0): the tree's normal density is at most W·B_L on L.
+    pub ratio: f64,
+    /// Σ P(L) over the final cells whose bound B_L is 0 (p underflows there while the split
+    /// law, falling back to solid angles, still gives them mass).
+    pub unbounded_mass: f64,
+    /// The final cells enumerated.
+    pub cells: usize,
+}
+
+impl CountTree {
+    /// The tree's directional law against the density it approximates. A particle's normal
+    /// descends the directional hierarchy with the split probabilities (table integrals, the
+    /// one-point rule elsewhere) to a *final cell* L (edges ≤ [`LEAF_CELL_ARC`], no Alg. 2
+    /// entry) and lands uniformly in it, so its density on L is P(L)/σ(L), P(L) the product of
+    /// the split probabilities along the path. Where Alg. 2 accepted a cell by δ_abs (the far
+    /// tails) that density can exceed p by large factors. This enumerates every final cell
+    /// with positive probability (hundreds of thousands for a wide p) and compares P(L)/σ(L)
+    /// with `density_bound(cos θ_near, cos θ_far)`, an upper bound on p over the directions
+    /// whose angle from n lies between those of L's circumscribed cap.
+    ///
+    /// [`LEAF_CELL_ARC`]: crate::LEAF_CELL_ARC
+    #[must_use]
+    pub fn directional_law_excess(
+        &self,
+        density_bound: &dyn Fn(f64, f64) -> f64,
+    ) -> DirectionalLawExcess {
+        let mut excess = DirectionalLawExcess {
+            ratio: 0.0,
+            unbounded_mass: 0.0,
+            cells: 0,
+        };
+        let mut stack = vec![(DirectionalCell::HEMISPHERE, 1.0_f64)];
+        while let Some((cell, probability)) = stack.pop() {
+            if !(probability > 0.0) {
+                continue;
+            }
+            if let Some(triangle) = self.final_cell(&cell) {
+                // L lies within its circumscribed cap: centre c (the centroid's direction),
+                // radius r (the farthest vertex), so θ over L is within [θ_c − r, θ_c + r].
+                let centre = triangle.centroid().normalize();
+                let radius = triangle
+                    .vertices()
+                    .iter()
+                    .map(|v| centre.dot(*v).clamp(-1.0, 1.0).acos())
+                    .fold(0.0, f64::max);
+                let theta = centre.z.clamp(-1.0, 1.0).acos();
+                let bound = density_bound((theta - radius).max(0.0).cos(), (theta + radius).cos());
+                if bound > 0.0 {
+                    let ratio = probability / (triangle.solid_angle() * bound);
+                    excess.ratio = excess.ratio.max(ratio);
+                } else {
+                    excess.unbounded_mass += probability;
+                }
+                excess.cells += 1;
+                continue;
+            }
+            let split = self.directional_split(&cell);
+            for (child, p) in split.children.iter().zip(split.probabilities) {
+                stack.push((*child, probability * p));
+            }
+        }
+        excess
+    }
+
+    /// N·area(A)·∫_{Ω_h} p(m) dm: the expected count of a query, with ∫p over the conic by the
+    /// tree's own quadrature (table entries, one-point rule and overlap fractions elsewhere).
+    #[must_use]
+    pub fn expected_count(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        scratch: &mut QueryScratch,
+    ) -> f64 {
+        self.expected_count_by(footprint, conic, OverlapMethod::Precise, &mut scratch.cells)
+    }
+
+    /// N·area·∫p over the conic, with partial near-uniform cells measured by `method`.
+    pub(super) fn expected_count_by(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        method: OverlapMethod,
+        cells: &mut Vec<DirectionalCell>,
+    ) -> f64 {
+        if footprint.is_degenerate() {
+            return 0.0;
+        }
+        let integral =
+            self.integral_over_conic_within(&DirectionalCell::HEMISPHERE, conic, method, cells);
+        self.config.particles as f64 * footprint.area() * integral
+            / self.quadrature.hemisphere_integral()
+    }
+
+    /// ∫ p over cell ∩ conic: descend the cells that have table entries; elsewhere take the
+    /// cell's integral times its overlap fraction (p near-uniform there).
+    pub(super) fn integral_over_conic_within(
+        &self,
+        start: &DirectionalCell,
+        conic: &SphericalConic,
+        method: OverlapMethod,
+        stack: &mut Vec<DirectionalCell>,
+    ) -> f64 {
+        stack.clear();
+        stack.push(*start);
+        let mut total = 0.0;
+        let density = self.density.as_ref();
+        while let Some(cell) = stack.pop() {
+            let Some(triangle) = cell.triangle else {
+                stack.extend(cell.children());
+                continue;
+            };
+            match conic.classify(&triangle) {
+                Classification::Disjoint => {}
+                Classification::TriangleInsideConic => {
+                    total += self.quadrature.integral(&cell, density)
+                }
+                _ if self.quadrature.has_entry(&cell) => stack.extend(cell.children()),
+                _ => {
+                    let fraction =
+                        overlap_solid_angle(&triangle, conic, method) / cell.solid_angle();
+                    total += self.quadrature.integral(&cell, density) * fraction;
+                }
+            }
+        }
+        total
+    }
+}

@@ -1,0 +1,369 @@
+//! A leaf particle's normal (Sec. 3.4).
+//!
+//! The directional law of the tree below a leaf, for one particle: descend the directional
+//! hierarchy with the split probabilities of [`NdfQuadrature::split_probabilities`] (the law
+//! of the multinomial splits, one particle at a time) until the cell has no table entry and
+//! its longest edge is below [`LEAF_CELL_ARC`], then sample the flat triangle uniformly and
+//! project (the projection's non-uniformity there is below 1e-4 relative).
+//!
+//! The descent is by inversion ([`NormalDescent`]), and the particles of a leaf descend
+//! together ([`CountTree::normals_in_conic`]) with the draws each would take alone. The final
+//! cells and the draws are value-stable: see `super`.
+//!
+//! [`NdfQuadrature::split_probabilities`]: crate::ndf::NdfQuadrature::split_probabilities
+
+use glam::DVec3;
+use glint_sphere::{Classification, SphericalConic, SphericalTriangle};
+
+use super::leaf::{LeafParticle, LeafStream};
+use crate::ndf::DirectionalCell;
+use crate::tea::{draw_at, unit_f64};
+use crate::tree::CountTree;
+use crate::tree::scratch::QueryMemo;
+
+/// Leaf particles' normals descend the directional hierarchy until the cell's longest edge is
+/// below this arc (radians), then land uniformly in the cell: a particle's normal is within
+/// this angle of every direction of the last cell it reached.
+pub const LEAF_CELL_ARC: f64 = 0.01;
+
+/// The chord of [`LEAF_CELL_ARC`], 2·sin(0.005).
+const LEAF_CELL_CHORD: f64 = 0.009_999_958_333_385_416;
+
+impl CountTree {
+    /// The triangle of `cell` if it is a *final cell* of the directional law: its longest edge
+    /// is below [`LEAF_CELL_ARC`] and Alg. 2 has no entry for it, so a leaf particle's normal
+    /// that reaches it lands uniformly in it.
+    pub(in crate::tree) fn final_cell<'a>(
+        &self,
+        cell: &'a DirectionalCell,
+    ) -> Option<&'a SphericalTriangle> {
+        cell.triangle.as_ref().filter(|triangle| {
+            triangle.longest_chord() <= LEAF_CELL_CHORD && !self.quadrature.has_entry(cell)
+        })
+    }
+
+    /// Which of the leaf particles `members` (bits indexing `particles`, each descending the
+    /// law above with its own stream, all now in `cell`, which the conic classifies as
+    /// `classification`) have normals in the conic; the answer has their bits set.
+    ///
+    /// The particles descend together: a cell's split and its children's classifications are
+    /// computed once for all the particles in it. Each particle still takes its own draws in
+    /// its own order, so the answer is that of descending them one at a time. A descent stops
+    /// as soon as its cell is inside the conic or disjoint from it: the classification is
+    /// never wrong there, so the answer is that of the normals the full descent would reach.
+    pub(super) fn normals_in_conic(
+        &self,
+        cell: &DirectionalCell,
+        classification: Classification,
+        conic: &SphericalConic,
+        memo: &mut QueryMemo,
+        (stream, particles): (&LeafStream, &mut [LeafParticle]),
+        members: u64,
+    ) -> u64 {
+        match classification {
+            Classification::Disjoint => return 0,
+            Classification::TriangleInsideConic => return members,
+            Classification::ConicInsideTriangle | Classification::Partial => {}
+        }
+        if let Some(triangle) = self.final_cell(cell) {
+            let mut inside = 0;
+            for k in self::members(members) {
+                let normal = particles[k].normal.point_in(triangle, stream);
+                inside |= u64::from(conic.contains(normal)) << k;
+            }
+            return inside;
+        }
+        let computed;
+        let (children, probabilities) = match self.directional_splits.get(cell) {
+            Some(split) => (&split.children, split.probabilities),
+            None => {
+                computed = cell.children();
+                (&computed, memo.split_probabilities(self, cell, &computed))
+            }
+        };
+        let mut by_child = [0u64; 4];
+        for k in self::members(members) {
+            by_child[particles[k].normal.step(&probabilities, stream)] |= 1 << k;
+        }
+        let mut inside = 0;
+        for (child, group) in children.iter().zip(by_child) {
+            if group != 0 {
+                let classification = memo.classify(child, conic);
+                inside |= self.normals_in_conic(
+                    child,
+                    classification,
+                    conic,
+                    memo,
+                    (stream, particles),
+                    group,
+                );
+            }
+        }
+        inside
+    }
+}
+
+/// A leaf particle's normal on its way down the directional hierarchy, by inversion: one
+/// uniform number u picks the child whose interval [p₀ + … + p_{j−1}, p₀ + … + p_j) holds it,
+/// and u rescaled to that interval, (u − p₀ − … − p_{j−1})/p_j, is again uniform and picks
+/// the next level's child. The path then has the law of one categorical draw per level with
+/// the split probabilities. Rescaling spends log₂(1/p_j) of u's 53 bits per level; once the
+/// interval's width (the product of the p_j taken) is below 2⁻²¹, fewer than 32 bits would be
+/// left (the resolution of the particle's position), and u is replaced by the stream's next
+/// draw. Most descents thus take one draw until their final cell (a particle that reaches
+/// one takes two more for its point in it), and a 4-lane TEA call computes the first draws of
+/// four particles at once.
+#[derive(Clone, Debug)]
+pub(super) struct NormalDescent {
+    /// The particle's stream: (leaf key, purpose).
+    pub(super) purpose: u32,
+    /// The stream's next unused draw.
+    next_draw: u32,
+    /// The current uniform number in [0, 1).
+    pub(super) uniform: f64,
+    /// The width of the interval of the number drawn that `uniform` now spans.
+    width: f64,
+}
+
+/// Below this interval width a descent takes a fresh draw (see [`NormalDescent`]).
+const DESCENT_MIN_WIDTH: f64 = 1.0 / (1u64 << 21) as f64;
+
+/// The largest double below 1.
+const ONE_BELOW: f64 = 1.0 - f64::EPSILON / 2.0;
+
+impl NormalDescent {
+    /// The descent of the particle with stream `purpose`, whose draws from `next_draw` on are
+    /// unused; `uniform` is set by the caller (draw `leaf::DRAW_DESCENT`).
+    pub(super) fn new(purpose: u32, next_draw: u32) -> Self {
+        Self {
+            purpose,
+            next_draw,
+            uniform: 0.0,
+            width: 1.0,
+        }
+    }
+
+    /// The stream's next draw as a uniform number in [0, 1).
+    fn fresh_uniform(&mut self, stream: &LeafStream) -> f64 {
+        let bits = draw_at(stream.key, self.purpose, self.next_draw, stream.rounds);
+        self.next_draw += 1;
+        unit_f64(bits)
+    }
+
+    /// The child (0–3) the descent takes under split `probabilities` (summing to 1 up to
+    /// rounding; the last child takes any remainder), after which `self` is the descent in it.
+    fn step(&mut self, probabilities: &[f64; 4], stream: &LeafStream) -> usize {
+        let [p0, p1, p2, p3] = *probabilities;
+        let u = self.uniform;
+        let (r1, r2) = (u - p0, u - p0 - p1);
+        let r3 = r2 - p2;
+        // The first j with u − p₀ − … − p_{j−1} < p_j, without branches (the child is random,
+        // so a branch per comparison would be mispredicted often).
+        let child =
+            usize::from(u >= p0) * (1 + usize::from(r1 >= p1) * (1 + usize::from(r2 >= p2)));
+        let (remainder, p) = [(u, p0), (r1, p1), (r2, p2), (r3, p3)][child];
+        self.width *= p;
+        self.uniform = if self.width < DESCENT_MIN_WIDTH {
+            self.width = 1.0;
+            self.fresh_uniform(stream)
+        } else {
+            (remainder / p).clamp(0.0, ONE_BELOW)
+        };
+        child
+    }
+
+    /// The particle's normal, uniform in the flat `triangle` of its final cell (projected):
+    /// two fresh draws.
+    fn point_in(&mut self, triangle: &SphericalTriangle, stream: &LeafStream) -> DVec3 {
+        let root = self.fresh_uniform(stream).sqrt();
+        let v = self.fresh_uniform(stream);
+        triangle.direction_at([1.0 - root, root * (1.0 - v), root * v])
+    }
+}
+
+/// The indices of the set bits of `bits`, in increasing order.
+pub(super) fn members(mut bits: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let k = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            k
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::tea::TeaRng;
+    use crate::tree::CountTreeConfig;
+    use crate::tree::test_support::classify_cell;
+
+    /// The descent of one leaf particle at a time: the reference for the grouped descent.
+    fn normal_in_conic_alone(
+        tree: &CountTree,
+        cell: &DirectionalCell,
+        classification: Classification,
+        conic: &SphericalConic,
+        stream: &LeafStream,
+        normal: &mut NormalDescent,
+    ) -> bool {
+        let (mut cell, mut classification) = (*cell, classification);
+        loop {
+            match classification {
+                Classification::Disjoint => return false,
+                Classification::TriangleInsideConic => return true,
+                Classification::ConicInsideTriangle | Classification::Partial => {}
+            }
+            if let Some(triangle) = tree.final_cell(&cell) {
+                return conic.contains(normal.point_in(triangle, stream));
+            }
+            let split = tree.directional_split(&cell);
+            cell = split.children[normal.step(&split.probabilities, stream)];
+            classification = classify_cell(&cell, conic);
+        }
+    }
+
+    /// A descent by inversion has the law of independent categorical draws per level: the
+    /// children taken at consecutive levels are independent, each with the split's
+    /// probabilities, across the fresh draws that replace a spent number (chi-square, 15
+    /// degrees of freedom, α = 1e-6 per level pair).
+    #[test]
+    fn descents_by_inversion_take_independent_categorical_steps() {
+        let p = [0.05, 0.15, 0.3, 0.5];
+        let (particles, levels) = (40_000u32, 30);
+        let stream = LeafStream {
+            key: [5, 6, 7, 8],
+            rounds: 8,
+        };
+        let mut pairs = vec![[[0u32; 4]; 4]; levels - 1];
+        let mut fresh_draws = 0;
+        for purpose in 0..particles {
+            let mut descent = NormalDescent::new(purpose, 1);
+            descent.uniform = descent.fresh_uniform(&stream);
+            let mut previous = descent.step(&p, &stream);
+            for pair in &mut pairs {
+                let child = descent.step(&p, &stream);
+                pair[previous][child] += 1;
+                previous = child;
+            }
+            fresh_draws += descent.next_draw - 2;
+        }
+        // About one fresh draw per 13 levels (−Σ p ln p = 1.14 nats per level, 2⁻²¹ = e^−14.6).
+        assert!(
+            fresh_draws > particles,
+            "{fresh_draws} fresh draws for {particles} descents"
+        );
+        for (level, pair) in pairs.iter().enumerate() {
+            let mut chi_square = 0.0;
+            for (a, row) in pair.iter().enumerate() {
+                for (b, &observed) in row.iter().enumerate() {
+                    let expected = f64::from(particles) * p[a] * p[b];
+                    chi_square += (f64::from(observed) - expected).powi(2) / expected;
+                }
+            }
+            assert!(
+                chi_square < 57.4,
+                "levels {level}, {}: χ² = {chi_square}",
+                level + 1
+            );
+        }
+    }
+
+    #[test]
+    fn grouped_leaf_descent_is_the_descent_one_particle_at_a_time() {
+        let alpha: f64 = 0.02;
+        let density = Arc::new(move |m: DVec3| {
+            let cos2 = m.z * m.z;
+            let tan2 = (1.0 - cos2) / cos2;
+            (-tan2 / (alpha * alpha)).exp() / (std::f64::consts::PI * alpha * alpha * cos2 * m.z)
+        });
+        let tree = CountTree::new(CountTreeConfig::default(), density).expect("valid");
+        let centroid = |cell: &DirectionalCell| cell.triangle.map_or(DVec3::Z, |t| t.centroid());
+        let mut draws = TeaRng::new([1, 2, 3, 4], 0, 8);
+        let (mut partial_answers, mut found) = (0, 0);
+        // One memo for all trials, as one scratch serves many queries.
+        let mut memo = QueryMemo::default();
+        for trial in 0..300 {
+            // A cell 0–9 levels deep, towards the normal for most trials (where the table is).
+            let mut cell = DirectionalCell::HEMISPHERE;
+            for _ in 0..trial % 10 {
+                let children = cell.children();
+                let toward_normal = children
+                    .iter()
+                    .max_by(|a, b| centroid(a).z.total_cmp(&centroid(b).z))
+                    .copied()
+                    .expect("four children");
+                cell = if draws.uniform() < 0.7 {
+                    toward_normal
+                } else {
+                    children[(draws.uniform() * 4.0) as usize % 4]
+                };
+            }
+            // A conic of half-vectors around a point near the cell's centroid.
+            let h = (centroid(&cell)
+                + 0.01 * DVec3::new(draws.uniform() - 0.5, draws.uniform() - 0.5, 0.0))
+            .normalize();
+            let wi = DVec3::new(0.3, -0.2, 1.0).normalize();
+            let wo = 2.0 * wi.dot(h) * h - wi;
+            let gamma = 0.002 + 0.1 * draws.uniform();
+            let Ok(conic) = SphericalConic::new(wi, wo, gamma) else {
+                continue;
+            };
+            let classification = classify_cell(&cell, &conic);
+            let count = 1 + (trial % 64);
+            let stream = LeafStream {
+                key: [trial, 7, 8, 9],
+                rounds: 8,
+            };
+            let mut particles: Vec<LeafParticle> = (0..count)
+                .map(|k| {
+                    let mut normal = NormalDescent::new(k, 2 + k % 3);
+                    normal.uniform = draws.uniform();
+                    LeafParticle {
+                        normal,
+                        multiplicity: 1,
+                        shares: [0.0; 3],
+                    }
+                })
+                .collect();
+            let mut alone: Vec<NormalDescent> =
+                particles.iter().map(|p| p.normal.clone()).collect();
+            let everyone = u64::MAX >> (64 - count);
+            memo.begin_query();
+            let grouped = tree.normals_in_conic(
+                &cell,
+                classification,
+                &conic,
+                &mut memo,
+                (&stream, &mut particles),
+                everyone,
+            );
+            for (k, normal) in alone.iter_mut().enumerate() {
+                let expected =
+                    normal_in_conic_alone(&tree, &cell, classification, &conic, &stream, normal);
+                assert_eq!(
+                    grouped >> k & 1 == 1,
+                    expected,
+                    "trial {trial} particle {k}"
+                );
+                // Each particle took the same draws as alone.
+                let grouped = &particles[k].normal;
+                assert_eq!(
+                    (grouped.uniform, grouped.next_draw),
+                    (normal.uniform, normal.next_draw),
+                    "trial {trial}"
+                );
+            }
+            partial_answers += u32::from(grouped != 0 && grouped != everyone);
+            found += grouped.count_ones();
+        }
+        // The trials exercise descents that split their particles.
+        assert!(
+            partial_answers > 30 && found > 300,
+            "{partial_answers} {found}"
+        );
+    }
+}

@@ -1,0 +1,183 @@
+//! A leaf's particles (Sec. 3.4): a node with at most [`LEAF_PARTICLES`] particles, or at the
+//! depth guard, places them explicitly, each from its own stream: in a sub-box of the leaf's
+//! box picked by four bits of the leaf's stream, uniformly within it, with area shares per
+//! colour channel, and a normal by the descent of `super::descent`. A leaf is counted against
+//! the query here, drawing only what the footprint needs: positions for the sub-boxes that may
+//! meet it, normals and area shares for the particles inside it. Which draw defines what is
+//! value-stable: see `super`.
+
+use glam::DVec2;
+use glint_sphere::{Classification, SphericalConic};
+
+use super::descent::{NormalDescent, members};
+use super::{Node, PURPOSE_LEAF, PURPOSE_LEAF_SUB_BOXES};
+use crate::footprint::Footprint;
+use crate::sampling::exponential;
+use crate::tea::{TeaRng, draws_x4, unit_f64, unit_pair};
+use crate::tree::CountTree;
+use crate::tree::scratch::QueryMemo;
+
+/// Nodes with at most this many particles place them explicitly (leaves): up to this size a
+/// leaf's per-particle work (one 4-lane TEA call per four positions, a normal only for the
+/// particles in the footprint) costs less than splitting on (a multinomial and four child
+/// tests per level).
+pub const LEAF_PARTICLES: u64 = 32;
+
+/// A leaf's box is divided into this many sub-boxes per side for placing its particles (16:
+/// four bits per particle).
+const LEAF_SUB_BOXES_PER_SIDE: usize = 4;
+
+/// The column and row of a leaf's sub-box from its four-bit code.
+#[inline]
+fn sub_box_column_and_row(code: usize) -> (usize, usize) {
+    (
+        code % LEAF_SUB_BOXES_PER_SIDE,
+        code / LEAF_SUB_BOXES_PER_SIDE,
+    )
+}
+
+/// A leaf particle's stream is (the leaf's key, its purpose): draw 0 is its position in the
+/// box, draw 1 the first uniform number of its normal's descent, draws 2… its area shares
+/// (one per colour channel), and the draws after those its descent's further numbers.
+const DRAW_DESCENT: u32 = 1;
+/// The first area-share draw of a leaf particle's stream (see [`DRAW_DESCENT`]).
+const DRAW_AREAS: u32 = 2;
+
+/// A leaf particle in the footprint, between its position and its normal: its normal's
+/// descent, how many footprint translates hold it, and its exponential area draws per channel.
+#[derive(Clone, Debug)]
+pub(in crate::tree) struct LeafParticle {
+    pub(super) normal: NormalDescent,
+    pub(super) multiplicity: u64,
+    pub(super) shares: [f64; 3],
+}
+
+/// The key and TEA rounds of a leaf's particles' streams.
+pub(super) struct LeafStream {
+    pub(super) key: [u32; 4],
+    pub(super) rounds: u32,
+}
+
+impl CountTree {
+    /// Counts a leaf's particles (positions one by one, normals by [`Self::normals_in_conic`]);
+    /// returns (count, area sums). `directional` is the
+    /// conic's classification of the leaf's cell; `in_footprint` is reused working memory.
+    pub(in crate::tree) fn count_leaf(
+        &self,
+        node: &Node,
+        directional: Classification,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        memo: &mut QueryMemo,
+        in_footprint: &mut Vec<LeafParticle>,
+    ) -> (f64, [f64; 3]) {
+        let box_size = node.box_size();
+        let channels = self.config.colour_channels;
+        // Each particle's share of the node's area, per channel: Dirichlet(1, …, 1) as
+        // normalized exponentials (all particles' draws are needed for the normalization).
+        let key = node.id.key(self.config.seed);
+        let rounds = self.config.tea_rounds;
+        let mut exponential_sums = [0.0; 3];
+        if channels > 0 {
+            for k in 0..node.count {
+                let mut rng = TeaRng::starting_at(key, PURPOSE_LEAF + k as u32, rounds, DRAW_AREAS);
+                for sum in exponential_sums.iter_mut().take(channels) {
+                    *sum += exponential(&mut rng);
+                }
+            }
+        }
+        // Particle k lies in one of the box's 4×4 sub-boxes, four random bits of the leaf's
+        // own stream (sixteen particles per draw), and uniformly in it: its position is draw 0
+        // of its stream (x from the high 32 bits, y from the low ones). That is uniform in the
+        // box, and only the particles of sub-boxes whose translates may meet the footprint
+        // need their positions (four per 4-lane TEA call). A particle's later draws (its
+        // normal's, its areas': see `DRAW_DESCENT`) are drawn only if the footprint holds it.
+        in_footprint.clear();
+        let multiplicity_at = footprint.multiplicity_in_box(node.box_min, box_size);
+        let sub_size = box_size / LEAF_SUB_BOXES_PER_SIDE as f64;
+        let sub_box_min = |code: usize| {
+            let (column, row) = sub_box_column_and_row(code);
+            node.box_min + sub_size * DVec2::new(column as f64, row as f64)
+        };
+        let [columns, rows] = multiplicity_at
+            .meeting_columns_and_rows::<LEAF_SUB_BOXES_PER_SIDE>(node.box_min, box_size);
+        // Bit `code` set for the sub-boxes in a meeting column and a meeting row.
+        let meeting =
+            (0..LEAF_SUB_BOXES_PER_SIDE * LEAF_SUB_BOXES_PER_SIDE).fold(0u32, |mask, code| {
+                let (column, row) = sub_box_column_and_row(code);
+                mask | (columns >> column & rows >> row & 1) << code
+            });
+        let mut sub_boxes = self.stream(node.id, PURPOSE_LEAF_SUB_BOXES);
+        for first in (0..node.count).step_by(16) {
+            // The particles of these sixteen whose sub-boxes may meet the footprint.
+            let codes = sub_boxes.next_bits();
+            let mut candidates = [(0u32, 0usize); 16];
+            let mut found = 0;
+            for i in 0..(node.count - first).min(16) {
+                // Written always, kept by advancing `found` (no branch to mispredict: whether
+                // a particle's sub-box meets the footprint is a coin toss).
+                let code = (codes >> (4 * i) & 15) as usize;
+                candidates[found] = (PURPOSE_LEAF + (first + i) as u32, code);
+                found += (meeting >> code & 1) as usize;
+            }
+            for four in candidates[..found].chunks(4) {
+                let purposes: [u32; 4] = std::array::from_fn(|i| four.get(i).map_or(0, |c| c.0));
+                let draws = draws_x4(key, purposes, 0, rounds);
+                for (&(purpose, code), draw) in four.iter().zip(draws) {
+                    let position = sub_box_min(code) + sub_size * DVec2::from(unit_pair(draw));
+                    let multiplicity = multiplicity_at.at(position);
+                    if multiplicity == 0 {
+                        continue;
+                    }
+                    let mut shares = [0.0; 3];
+                    if channels > 0 {
+                        let mut rng = TeaRng::starting_at(key, purpose, rounds, DRAW_AREAS);
+                        for share in shares.iter_mut().take(channels) {
+                            *share = exponential(&mut rng);
+                        }
+                    }
+                    in_footprint.push(LeafParticle {
+                        normal: NormalDescent::new(purpose, DRAW_AREAS + channels as u32),
+                        multiplicity,
+                        shares,
+                    });
+                }
+            }
+        }
+        // The first uniform number of each descent, four particles per 4-lane TEA call.
+        for four in in_footprint.chunks_mut(4) {
+            let purposes: [u32; 4] =
+                std::array::from_fn(|i| four.get(i).map_or(0, |p| p.normal.purpose));
+            let draws = draws_x4(key, purposes, DRAW_DESCENT, rounds);
+            for (particle, draw) in four.iter_mut().zip(draws) {
+                particle.normal.uniform = unit_f64(draw);
+            }
+        }
+        // The normals of the particles in the footprint, 64 at a time (a bit each).
+        let stream = LeafStream { key, rounds };
+        let mut found = 0.0;
+        let mut areas = [0.0; 3];
+        for group in in_footprint.chunks_mut(64) {
+            let everyone = u64::MAX >> (64 - group.len());
+            let inside = self.normals_in_conic(
+                &node.cell,
+                directional,
+                conic,
+                memo,
+                (&stream, group),
+                everyone,
+            );
+            for particle in members(inside).map(|k| &group[k]) {
+                let multiplicity = particle.multiplicity as f64;
+                found += multiplicity;
+                for c in 0..channels {
+                    if exponential_sums[c] > 0.0 {
+                        areas[c] +=
+                            multiplicity * node.areas[c] * particle.shares[c] / exponential_sums[c];
+                    }
+                }
+            }
+        }
+        (found, areas)
+    }
+}

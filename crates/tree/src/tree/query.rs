@@ -1,0 +1,381 @@
+//! The query: Alg. 1's breadth-first count of the particles in a footprint × conic, with the
+//! error criterion of Eq. 10.
+//!
+//! Breadth first, from the root: a node disjoint from the query in space or direction, or
+//! empty, is dropped; a node inside it (multiplicity constant over the box, triangle inside the
+//! conic) adds its count; a partial node on which p is near-uniform stops early when
+//! √(n·q(1−q)) < ε·count (Eq. 10), adding n·q with q its overlap fraction; a leaf counts its
+//! particles one by one; any other node splits. ε = 0 is exact: the count is then a sum of whole
+//! particles, the count in a fixed region is Binomial(N, ·), and counts are additive over
+//! disjoint footprints.
+//!
+//! Footprints wrap around the texture: a particle is counted once per integer translate inside
+//! the footprint (see [`crate::footprint`]).
+//!
+//! The query chooses which nodes to visit, split or estimate, never what they hold: the
+//! children and their counts come from the particle set's definition (`super::particles`).
+
+use glam::DVec2;
+use glint_sphere::{Classification, SphericalConic, overlap_solid_angle};
+
+use super::particles::{LEAF_PARTICLES, Node, quarter_min};
+use super::scratch::QueryMemo;
+use super::{CountTree, QueryScratch};
+use crate::footprint::{BoxOverlap, Footprint};
+use crate::ndf::DirectionalCell;
+
+/// At the depth guard, nodes with more particles than this add their expected share instead of
+/// being placed one by one (only degenerate queries get there).
+const MAX_EXPLICIT_PARTICLES: u64 = 256;
+
+/// Queries that have visited (tested against the query) this many nodes take the expected
+/// count as Eq. 10's scale.
+const SCALE_AFTER_NODES: u32 = 512;
+
+/// The answer to a query.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QueryResult {
+    /// Particles found (counted with multiplicity across texture tiles); fractional when ε > 0
+    /// let nodes stop early.
+    pub count: f64,
+    /// D̂ of Eq. 6 per colour channel: count/N without particle areas, else the summed areas of
+    /// the particles found (all three channels equal for gray materials).
+    pub d_hat: [f64; 3],
+    /// Tree nodes visited: every non-empty node tested against the query, as Alg. 1 pops
+    /// and tests every child it pushed (disjoint ones included).
+    pub nodes_visited: u32,
+    /// The visited nodes that meet the query (not proven disjoint from it: the conservative
+    /// "partial" answers count): those Alg. 1 counts, splits or estimates rather than
+    /// discards. At least 1 unless the footprint is degenerate (then both counts are 0).
+    pub nodes_overlapping: u32,
+    /// Whether the node budget cut the traversal short (the count is then partly an
+    /// expectation, even with ε = 0).
+    pub truncated: bool,
+}
+
+/// A node waiting in a query's queue, with the query's answers for it: how its box meets the
+/// footprint and how its cell meets the conic. Both are computed when the node is created
+/// (children of a spatial split share the parent's directional answer, children of a
+/// directional split its spatial one), so nodes disjoint from the query never enter the queue.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct QueuedNode {
+    node: Node,
+    spatial: BoxOverlap,
+    directional: Classification,
+}
+
+/// A node's expected contribution per particle to a query, and its variance (Eq. 10).
+#[derive(Clone, Copy, Debug)]
+struct OverlapShare {
+    mean: f64,
+    variance: f64,
+}
+
+impl OverlapShare {
+    /// √(n·Var): the spread of the node's contribution, Eq. 10's √(np(1 − p)).
+    fn deviation(&self, particles: u64) -> f64 {
+        (particles as f64 * self.variance.max(0.0)).sqrt()
+    }
+}
+
+impl CountTree {
+    /// Counts the particles in `footprint` × `conic` (Alg. 1). The result is finite, ≥ 0 and
+    /// deterministic; `scratch` is reused working memory (no allocation once it has grown).
+    pub fn query(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        scratch: &mut QueryScratch,
+    ) -> QueryResult {
+        let mut count = 0.0;
+        let mut area_sums = [0.0; 3];
+        let mut visited = 0u32;
+        let mut overlapping = 0u32;
+        let mut truncated = false;
+        if footprint.is_degenerate() {
+            return self.result(0.0, area_sums, [visited, overlapping], truncated);
+        }
+        let QueryScratch {
+            queue,
+            next_queue,
+            cells,
+            in_footprint,
+            memo,
+        } = scratch;
+        queue.clear();
+        next_queue.clear();
+        memo.begin_query();
+        let root = self.root();
+        let root = QueuedNode {
+            spatial: footprint.overlap_box(root.box_min, root.box_size()),
+            directional: memo.classify(&root.cell, conic),
+            node: root,
+        };
+        visited += 1;
+        if !root.spatial.is_disjoint() {
+            queue.push(root);
+        }
+        // Eq. 10 compares a node's spread with ε times the running count. A footprint of a
+        // tile or more finds nothing fully inside for many levels (its wrapped edges cut every
+        // coarse box), and a dense query may also run long on a zero count; there the expected
+        // total N·A·∫p (what the count converges to) is the scale: from the start for
+        // footprints of a tile or more, after SCALE_AFTER_NODES nodes for the others.
+        let mut scale_floor = None;
+        // Every node in the queue meets the query (disjoint children are dropped when created)
+        // and has been counted in `visited`.
+        // Breadth first, a level at a time: the queue holds one level while its children
+        // gather in the next (the order of a FIFO queue, without copying nodes out of it).
+        while !queue.is_empty() {
+            for queued in queue.iter() {
+                overlapping += 1;
+                if scale_floor.is_none()
+                    && self.config.epsilon > 0.0
+                    && (footprint.area() >= 1.0 || visited > SCALE_AFTER_NODES)
+                {
+                    // Eq. 10's scale: the material's overlap method suffices.
+                    let expected =
+                        self.expected_count_by(footprint, conic, self.config.overlap, cells);
+                    scale_floor = Some(expected);
+                }
+                let (node, spatial, directional) =
+                    (&queued.node, queued.spatial, queued.directional);
+                let directions_inside = directional == Classification::TriangleInsideConic;
+                if spatial.partial == 0 && directions_inside {
+                    let multiplicity = spatial.inside as f64;
+                    count += multiplicity * node.count as f64;
+                    accumulate(&mut area_sums, node.areas, multiplicity);
+                    continue;
+                }
+                // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
+                // query: in space they are uniform; in direction the fraction is the overlap's
+                // share of the triangle where p is near-uniform (no table entry, the paper's
+                // condition), and elsewhere ∫p over the overlap by the table, divided by ∫p over
+                // the triangle.
+                let threshold = self.config.epsilon * count.max(scale_floor.unwrap_or(0.0));
+                // Off the paper's condition the directional fraction costs a descent of the
+                // table: only try when a bound on the spread (Popoviciu: a contribution in
+                // [0, hi] has variance ≤ hi²/4) already passes. The descent is only worth it
+                // once a query has proved long (the scale floor is active); before that the
+                // paper's condition decides, as in Alg. 1.
+                let mut expected_share = || {
+                    self.overlap_share(node, footprint, conic, spatial, directions_inside, cells)
+                };
+                // (A table look-up, so only asked when the threshold is positive.)
+                let cheap = || directions_inside || !self.quadrature.has_entry(&node.cell);
+                let descend =
+                    scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
+                if threshold > 0.0 && (descend || cheap()) {
+                    let share = expected_share();
+                    if share.deviation(node.count) < threshold {
+                        count += node.count as f64 * share.mean;
+                        accumulate(&mut area_sums, node.areas, share.mean);
+                        continue;
+                    }
+                }
+                // Split only if the children's tests keep the visits within budget.
+                let over_budget = visited as usize + 4 > self.config.node_budget as usize;
+                truncated |= over_budget;
+                if over_budget
+                    || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)
+                {
+                    // The work guard, or the depth guard on a crowded node: the expected share.
+                    let share = expected_share();
+                    count += node.count as f64 * share.mean;
+                    accumulate(&mut area_sums, node.areas, share.mean);
+                    continue;
+                }
+                if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
+                    let (found, areas) =
+                        self.count_leaf(node, directional, footprint, conic, memo, in_footprint);
+                    count += found;
+                    accumulate(&mut area_sums, areas, 1.0);
+                    continue;
+                }
+                visited += self.split_into(queued, footprint, conic, memo, next_queue);
+            }
+            std::mem::swap(queue, next_queue);
+            next_queue.clear();
+        }
+        self.result(count, area_sums, [visited, overlapping], truncated)
+    }
+
+    /// Tests the children of `parent` (from the top-level cache when it is in it) against the
+    /// query and queues those that meet it, with the answers; returns how many were tested.
+    /// Those are the nodes Alg. 1 visits: it would pop the disjoint ones and discard them.
+    /// Empty children hold nothing for any query, so they are neither tested nor counted.
+    /// A pair of children (0, 1) or (2, 3) that both miss the query is not divided between
+    /// them when its division is still to be drawn: then min(total, 2) of them count as
+    /// tested (fewer if a child has probability 0; whether one was empty is not drawn).
+    fn split_into(
+        &self,
+        parent: &QueuedNode,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        memo: &mut QueryMemo,
+        queue: &mut Vec<QueuedNode>,
+    ) -> u32 {
+        let mut tested = 0;
+        let node = &parent.node;
+        // The query's answers for a child (the box at `box_min` of `box_level`, the cell),
+        // the parent's in the dimension the split keeps.
+        let mut answer = |spatial: bool, box_min: DVec2, box_level: u32, cell: &DirectionalCell| {
+            if spatial {
+                let overlap = memo.overlap_box(box_min, box_level, footprint);
+                (overlap, parent.directional)
+            } else {
+                (parent.spatial, memo.classify(cell, conic))
+            }
+        };
+        let meets = |(spatial, directional): (BoxOverlap, Classification)| {
+            !(spatial.is_disjoint() || directional == Classification::Disjoint)
+        };
+        let queued =
+            |child: Node, (spatial, directional): (BoxOverlap, Classification)| QueuedNode {
+                node: child,
+                spatial,
+                directional,
+            };
+        // Cached or coloured splits: all four counts are drawn (particle areas need them all,
+        // a Dirichlet draw over them).
+        let mut all_drawn = |children: &[Node; 4], spatial: bool| {
+            for child in children.iter().filter(|child| child.count > 0) {
+                tested += 1;
+                let answers = answer(spatial, child.box_min, child.box_level, &child.cell);
+                if meets(answers) {
+                    queue.push(queued(*child, answers));
+                }
+            }
+        };
+        if let Some((children, spatial)) = self.top_levels.get(node) {
+            all_drawn(children, *spatial);
+            return tested;
+        }
+        let spatial = self.splits_in_space(node);
+        if self.config.colour_channels > 0 {
+            let mut children = [*node; 4];
+            let mut k = 0;
+            self.emit_children(node, |child| {
+                children[k] = child;
+                k += 1;
+            });
+            all_drawn(&children, spatial);
+            return tested;
+        }
+        let split = (!spatial).then(|| self.directional_split(&node.cell));
+        let split = split.as_deref();
+        let mut counts = self.split_counts(node, split);
+        for pair in 0..2 {
+            if counts.totals[pair] == 0 {
+                continue;
+            }
+            let children = [2 * pair, 2 * pair + 1];
+            let pair_answers = children.map(|j| match split {
+                None => answer(true, quarter_min(node, j), node.box_level + 1, &node.cell),
+                Some(split) => answer(false, node.box_min, node.box_level, &split.children[j]),
+            });
+            if !(meets(pair_answers[0]) || meets(pair_answers[1])) {
+                tested += counts.undivided_visits(pair);
+                continue;
+            }
+            let divided = counts.divide(pair);
+            for i in 0..2 {
+                if divided[i] > 0 {
+                    tested += 1;
+                    if meets(pair_answers[i]) {
+                        let child = self.child(node, split, children[i], divided[i]);
+                        queue.push(queued(child, pair_answers[i]));
+                    }
+                }
+            }
+        }
+        tested
+    }
+
+    fn result(
+        &self,
+        count: f64,
+        area_sums: [f64; 3],
+        [nodes_visited, nodes_overlapping]: [u32; 2],
+        truncated: bool,
+    ) -> QueryResult {
+        let d_hat = match self.config.colour_channels {
+            0 => [count / self.config.particles as f64; 3],
+            1 => [area_sums[0]; 3],
+            _ => area_sums,
+        };
+        QueryResult {
+            count,
+            d_hat,
+            nodes_visited,
+            nodes_overlapping,
+            truncated,
+        }
+    }
+
+    /// The expected contribution per particle of `node` and the bound on its variance.
+    fn overlap_share(
+        &self,
+        node: &Node,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        spatial: BoxOverlap,
+        directions_inside: bool,
+        cells: &mut Vec<DirectionalCell>,
+    ) -> OverlapShare {
+        let box_size = node.box_size();
+        let multiplicity = if spatial.partial == 0 {
+            spatial.inside as f64
+        } else {
+            footprint.overlap_area(node.box_min, box_size) / (box_size * box_size)
+        };
+        let directional = if directions_inside {
+            1.0
+        } else if let (Some(t), false) =
+            (&node.cell.triangle, self.quadrature.has_entry(&node.cell))
+        {
+            overlap_solid_angle(t, conic, self.config.overlap) / node.solid_angle
+        } else {
+            let inside =
+                self.integral_over_conic_within(&node.cell, conic, self.config.overlap, cells);
+            let total = self.quadrature.integral_with_solid_angle(
+                &node.cell,
+                node.solid_angle,
+                self.density.as_ref(),
+            );
+            if total > 0.0 {
+                (inside / total).clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        };
+        // A particle contributes m(x)·[normal in the conic]: m ∈ [inside, inside + partial] has
+        // mean m̄ and (Bhatia–Davis) variance ≤ (m̄ − inside)(inside + partial − m̄); with the
+        // independent Bernoulli(d) of its normal, Var = d·Var(m) + m̄²·d(1 − d). For one tile
+        // (inside 0, partial 1) this is q(1 − q) with q = m̄·d, Eq. 10's binomial variance.
+        let (low, high) = (
+            spatial.inside as f64,
+            (spatial.inside + spatial.partial) as f64,
+        );
+        let multiplicity = multiplicity.clamp(low, high);
+        let spread = (multiplicity - low) * (high - multiplicity);
+        OverlapShare {
+            mean: multiplicity * directional,
+            variance: directional * spread
+                + multiplicity * multiplicity * directional * (1.0 - directional),
+        }
+    }
+}
+
+/// An upper bound on Eq. 10's spread √(n·Var) that needs no overlap computation: a particle
+/// contributes m(x)·[normal in the conic] ∈ [0, hi], so Var ≤ hi²/4 (Popoviciu).
+fn spread_bound(particles: u64, spatial: BoxOverlap) -> f64 {
+    let high = (spatial.inside + spatial.partial) as f64;
+    0.5 * high * (particles as f64).sqrt()
+}
+
+/// sums += factor · areas, per channel.
+fn accumulate(sums: &mut [f64; 3], areas: [f64; 3], factor: f64) {
+    for (sum, area) in sums.iter_mut().zip(areas) {
+        *sum += factor * area;
+    }
+}
