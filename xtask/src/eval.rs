@@ -3,23 +3,13 @@
 //! Each input line is one request (`op` = `eval`, `sample` or `pdf`); each output line answers
 //! it, in order. A line that is not valid JSON or holds invalid values yields
 //! `{"error": "..."}` naming the problem; the run goes on and the exit status is non-zero.
-//! Materials are built once per distinct `material` object and reused.
-//!
-//! Every answer goes through glint-brdf's public path: `eval` binds the material to the line's
-//! footprint (`DiscreteBrdf::at`) and asks that BxDF for f̂, its statistics and the expected
-//! count; `sample` and `pdf` use the material's glint sampler, which needs no footprint, and
-//! weigh samples with the smooth BRDF.
+//! The requests themselves are answered by glint-eval, which the Python package shares.
 
-use std::collections::HashMap;
 use std::io::{BufRead, Write};
 
 use anyhow::Context;
-use glam::{DVec2, DVec3};
-use glint_brdf::{
-    Bxdf, BxdfSample, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters,
-    Microfacet, MultinomialMode, QueryScratch,
-};
-use serde_json::{Map, Value, json};
+use glint_eval::JsonLines;
+use serde_json::json;
 
 /// Reads requests from `path` (or standard input) and writes answers to standard output.
 /// Returns the number of failed lines.
@@ -40,14 +30,14 @@ pub(crate) fn run(path: Option<&std::path::Path>) -> anyhow::Result<usize> {
 
 /// Answers every line of `input` on `output`; returns how many lines failed.
 pub(crate) fn process(input: impl BufRead, output: &mut impl Write) -> anyhow::Result<usize> {
-    let mut evaluator = Evaluator::default();
+    let mut requests = JsonLines::new();
     let mut failed = 0;
     for (number, line) in input.lines().enumerate() {
         let line = line.with_context(|| format!("reading line {}", number + 1))?;
         if line.trim().is_empty() {
             continue;
         }
-        let answer = match evaluator.answer(&line) {
+        let answer = match requests.answer(&line) {
             Ok(value) => value,
             Err(message) => {
                 failed += 1;
@@ -59,309 +49,11 @@ pub(crate) fn process(input: impl BufRead, output: &mut impl Write) -> anyhow::R
     Ok(failed)
 }
 
-#[derive(Default)]
-struct Evaluator {
-    materials: HashMap<String, (DiscreteBrdf, bool)>,
-    scratch: QueryScratch,
-}
-
-type Answer = Result<Value, String>;
-
-impl Evaluator {
-    fn answer(&mut self, line: &str) -> Answer {
-        let request: Value =
-            serde_json::from_str(line).map_err(|e| format!("invalid JSON: {e}"))?;
-        let request = request
-            .as_object()
-            .ok_or("a request must be a JSON object")?;
-        let op = match request.get("op") {
-            None => "eval",
-            Some(Value::String(op)) => op.as_str(),
-            Some(other) => return Err(format!("`op` must be a string, not {other}")),
-        };
-        if !matches!(op, "eval" | "sample" | "pdf") {
-            return Err(format!("unknown op `{op}`: use eval, sample or pdf"));
-        }
-        let material = request.get("material").ok_or("missing field `material`")?;
-        let key = material.to_string();
-        if !self.materials.contains_key(&key) {
-            let (parameters, gray) = parse_material(material)?;
-            let brdf = DiscreteBrdf::new(parameters).map_err(|e| format!("material: {e}"))?;
-            self.materials.insert(key.clone(), (brdf, gray));
-        }
-        let (brdf, gray) = &self.materials[&key];
-        let colour = |c: DVec3| {
-            if *gray {
-                json!(c.x)
-            } else {
-                json!([c.x, c.y, c.z])
-            }
-        };
-        let wi = direction(request, "wi")?;
-        match op {
-            "eval" => {
-                let wo = direction(request, "wo")?;
-                let footprint = Footprint::new(
-                    vector2(request, "uv")?,
-                    vector2(request, "duv_dx")?,
-                    vector2(request, "duv_dy")?,
-                )
-                .map_err(|e| format!("footprint: {e}"))?;
-                let bxdf = brdf.at(&footprint, &mut self.scratch);
-                let e = bxdf.evaluate(wi, wo);
-                let mut answer = json!({
-                    "count": e.count,
-                    "expected_count": bxdf.expected_count(wi, wo),
-                    "d_hat": e.d_hat.x,
-                    "f_hat": colour(e.f_hat),
-                    "f_smooth": colour(brdf.smooth().eval(wi, wo)),
-                    "nodes_visited": e.nodes_visited,
-                });
-                if let Some(bound) = e.negligible {
-                    answer["negligible_bound"] = json!(bound);
-                }
-                Ok(answer)
-            }
-            "sample" => {
-                let u = sample_uniforms(request)?;
-                let sample = brdf.sample_direction(wi, u).and_then(|wo| {
-                    BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
-                });
-                Ok(match sample {
-                    Some(s) => {
-                        json!({ "wo": [s.wo.x, s.wo.y, s.wo.z], "pdf": s.pdf, "weight": colour(s.weight) })
-                    }
-                    None => json!({ "wo": null }),
-                })
-            }
-            _ => {
-                let wo = direction(request, "wo")?;
-                Ok(json!({ "pdf": brdf.sampling_pdf(wi, wo) }))
-            }
-        }
-    }
-}
-
-/// The material's parameters and whether its Fresnel term is gray.
-fn parse_material(material: &Value) -> Result<(GlintParameters, bool), String> {
-    let m = material.as_object().ok_or("`material` must be an object")?;
-    const KNOWN: [&str; 12] = [
-        "distribution",
-        "alpha",
-        "alpha_y",
-        "particles",
-        "gamma_deg",
-        "epsilon",
-        "seed",
-        "fresnel",
-        "multinomial",
-        "expected_footprint_area",
-        "pdf_points",
-        "negligible_count",
-    ];
-    if let Some(unknown) = m.keys().find(|k| !KNOWN.contains(&k.as_str())) {
-        return Err(format!(
-            "unknown material field `{unknown}` (known: {})",
-            KNOWN.join(", ")
-        ));
-    }
-    let kind = match m.get("distribution").and_then(Value::as_str) {
-        Some("beckmann") => DistributionKind::Beckmann,
-        Some("ggx") => DistributionKind::Ggx,
-        Some(other) => {
-            return Err(format!(
-                "material.distribution `{other}` is unknown: use beckmann or ggx"
-            ));
-        }
-        None => return Err("material.distribution is missing: use beckmann or ggx".to_owned()),
-    };
-    let alpha = number(m, "alpha", "material.alpha")?;
-    let alpha_y = optional_number(m, "alpha_y", "material.alpha_y")?.unwrap_or(alpha);
-    let distribution =
-        Microfacet::new(kind, alpha, alpha_y).map_err(|e| format!("material: {e}"))?;
-    let mut parameters = GlintParameters::new(distribution);
-    let particles = number(m, "particles", "material.particles")?;
-    if !(particles >= 1.0 && particles.fract() == 0.0 && particles <= 9.007_199_254_740_992e15) {
-        return Err(format!(
-            "material.particles = {particles} must be a whole number in [1, 2^53]"
-        ));
-    }
-    parameters.particles = particles as u64;
-    parameters.gamma = number(m, "gamma_deg", "material.gamma_deg")?.to_radians();
-    if let Some(epsilon) = optional_number(m, "epsilon", "material.epsilon")? {
-        parameters.epsilon = epsilon;
-    }
-    if let Some(seed) = optional_number(m, "seed", "material.seed")? {
-        if !(seed >= 0.0 && seed.fract() == 0.0 && seed < 1.8e19) {
-            return Err(format!(
-                "material.seed = {seed} must be a non-negative whole number"
-            ));
-        }
-        parameters.seed = seed as u64;
-    }
-    if let Some(area) = optional_number(
-        m,
-        "expected_footprint_area",
-        "material.expected_footprint_area",
-    )? {
-        parameters.expected_footprint_area = area;
-    }
-    if let Some(count) = optional_number(m, "negligible_count", "material.negligible_count")? {
-        parameters.negligible_count = count;
-    }
-    if let Some(points) = optional_number(m, "pdf_points", "material.pdf_points")? {
-        parameters.pdf_points = points as usize;
-    }
-    parameters.multinomial = match m.get("multinomial") {
-        None => MultinomialMode::Exact,
-        Some(Value::String(s)) if s == "exact" => MultinomialMode::Exact,
-        Some(Value::String(s)) if s == "normal" => MultinomialMode::Normal,
-        Some(other) => {
-            return Err(format!(
-                "material.multinomial {other} is unknown: use \"exact\" or \"normal\""
-            ));
-        }
-    };
-    parameters.fresnel = parse_fresnel(m.get("fresnel"))?;
-    let gray = parameters.fresnel.is_gray();
-    Ok((parameters, gray))
-}
-
-fn parse_fresnel(value: Option<&Value>) -> Result<Fresnel, String> {
-    let fresnel = match value {
-        None => Fresnel::None,
-        Some(Value::String(s)) if s == "none" => Fresnel::None,
-        Some(Value::Object(o)) if o.len() == 1 && o.contains_key("conductor") => {
-            let c = o["conductor"]
-                .as_object()
-                .ok_or("material.fresnel.conductor must be an object")?;
-            Fresnel::Conductor {
-                eta: DVec3::from_array(numbers_in::<3>(
-                    c,
-                    "eta",
-                    "material.fresnel.conductor.eta",
-                )?),
-                k: DVec3::from_array(numbers_in::<3>(c, "k", "material.fresnel.conductor.k")?),
-            }
-        }
-        Some(Value::Object(o)) if o.len() == 1 && o.contains_key("dielectric") => {
-            let d = o["dielectric"]
-                .as_object()
-                .ok_or("material.fresnel.dielectric must be an object")?;
-            Fresnel::Dielectric {
-                eta: number(d, "eta", "material.fresnel.dielectric.eta")?,
-            }
-        }
-        Some(other) => {
-            return Err(format!(
-                "material.fresnel {other} is unknown: use \"none\", {{\"conductor\": {{\"eta\": [r,g,b], \"k\": [r,g,b]}}}} or {{\"dielectric\": {{\"eta\": x}}}}"
-            ));
-        }
-    };
-    fresnel.validated().map_err(|e| format!("material: {e}"))
-}
-
-fn number(object: &Map<String, Value>, key: &str, name: &str) -> Result<f64, String> {
-    optional_number(object, key, name)?.ok_or_else(|| format!("{name} is missing"))
-}
-
-fn optional_number(
-    object: &Map<String, Value>,
-    key: &str,
-    name: &str,
-) -> Result<Option<f64>, String> {
-    match object.get(key) {
-        None => Ok(None),
-        Some(value) => match value.as_f64() {
-            Some(x) if x.is_finite() => Ok(Some(x)),
-            _ => Err(format!("{name} must be a finite number, not {value}")),
-        },
-    }
-}
-
-fn numbers_in<const N: usize>(
-    object: &Map<String, Value>,
-    key: &str,
-    name: &str,
-) -> Result<[f64; N], String> {
-    let array = object
-        .get(key)
-        .ok_or_else(|| format!("{name} is missing"))?
-        .as_array()
-        .filter(|a| a.len() == N)
-        .ok_or_else(|| format!("{name} must be an array of {N} numbers"))?;
-    let mut out = [0.0; N];
-    for (slot, value) in out.iter_mut().zip(array) {
-        *slot = value
-            .as_f64()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| format!("{name} must hold finite numbers, not {value}"))?;
-    }
-    Ok(out)
-}
-
-fn numbers<const N: usize>(request: &Map<String, Value>, key: &str) -> Result<[f64; N], String> {
-    numbers_in::<N>(request, key, key)
-}
-
-fn vector2(request: &Map<String, Value>, key: &str) -> Result<DVec2, String> {
-    Ok(DVec2::from_array(numbers::<2>(request, key)?))
-}
-
-/// The glint sampler's four uniform numbers from a `sample` line's `u`: `[u0, u1, u2, u3]` as
-/// they are, or the three-number form `[u0, u1, u2]`, whose third number's odd and even bits
-/// give the cone's two numbers (the form `eval` accepted first; kept so that its lines keep
-/// their meaning).
-fn sample_uniforms(request: &Map<String, Value>) -> Result<[f64; 4], String> {
-    let given = request
-        .get("u")
-        .and_then(Value::as_array)
-        .map_or(0, Vec::len);
-    let u = if given == 3 {
-        let [u0, u1, u2] = numbers::<3>(request, "u")?;
-        check_uniforms(&[u0, u1, u2])?;
-        let [u2, u3] = split_uniform(u2);
-        [u0, u1, u2, u3]
-    } else {
-        numbers::<4>(request, "u")
-            .map_err(|e| format!("{e} (or 3 in the original form), each in [0, 1)"))?
-    };
-    check_uniforms(&u)?;
-    Ok(u)
-}
-
-fn check_uniforms(u: &[f64]) -> Result<(), String> {
-    if u.iter().any(|x| !(0.0..1.0).contains(x)) {
-        return Err("`u` must hold numbers in [0, 1)".to_owned());
-    }
-    Ok(())
-}
-
-/// Two uniforms from one: the odd and the even bits of its 52-bit mantissa fraction, bit
-/// 2k + 1 being the more significant of each pair (so the first carries the coarse half).
-fn split_uniform(u: f64) -> [f64; 2] {
-    let bits = (u.clamp(0.0, 1.0 - f64::EPSILON) * (1u64 << 52) as f64) as u64;
-    let (mut odd, mut even) = (0u64, 0u64);
-    for k in 0..26 {
-        odd |= ((bits >> (2 * k + 1)) & 1) << k;
-        even |= ((bits >> (2 * k)) & 1) << k;
-    }
-    let scale = 1.0 / (1u64 << 26) as f64;
-    [odd as f64 * scale, even as f64 * scale]
-}
-
-/// A direction, normalized; zero vectors are rejected.
-fn direction(request: &Map<String, Value>, key: &str) -> Result<DVec3, String> {
-    let v = DVec3::from_array(numbers::<3>(request, key)?);
-    if v.length_squared() == 0.0 {
-        return Err(format!("{key} has zero length"));
-    }
-    Ok(v.normalize())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glint_brdf::{Bxdf, DVec3, DistributionKind, Fresnel, Microfacet};
+    use serde_json::Value;
 
     const MATERIAL: &str = r#"{"distribution": "beckmann", "alpha": 0.1, "alpha_y": 0.1, "particles": 1e6, "gamma_deg": 1.0, "epsilon": 0.1, "seed": 7, "fresnel": "none"}"#;
 
@@ -402,16 +94,6 @@ mod tests {
         assert!(message.contains("negligible count"), "{message}");
     }
 
-    #[test]
-    fn split_uniform_gives_two_uniforms() {
-        let [a, b] = split_uniform(0.75);
-        assert!((0.0..1.0).contains(&a) && (0.0..1.0).contains(&b));
-        // 0.75 = 0b11 followed by zeros: the two coarsest bits go one to each half.
-        assert_eq!([a, b], [0.5, 0.5]);
-        // 0.5 + 2⁻³: bits 1 and 3 from the top, both odd-positioned (counting from bit 51).
-        assert_eq!(split_uniform(0.625), [0.75, 0.0]);
-    }
-
     /// The three-number `u` is the four-number one with its third number split; both forms
     /// sample, and a fourth number out of [0, 1) is an error.
     #[test]
@@ -421,7 +103,7 @@ mod tests {
                 r#"{{"op": "sample", "material": {MATERIAL}, "wi": [0.2, 0.0, 1.0], "u": {u}}}"#
             )
         };
-        let [c0, c1] = split_uniform(0.2);
+        let [c0, c1] = glint_eval::split_uniform(0.2);
         let lines = vec![
             line("[0.3, 0.6, 0.2]"),
             line(&format!("[0.3, 0.6, {c0:?}, {c1:?}]")),

@@ -1,0 +1,304 @@
+//! Materials as `docs/eval.md` specifies them: field names, units (γ in degrees), defaults and
+//! the messages that name a rejected field.
+
+use glint_brdf::{
+    DVec3, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MultinomialMode,
+};
+use serde_json::{Map, Value};
+
+use crate::request::EvalMaterial;
+
+/// A material's Fresnel term as `docs/eval.md` writes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FresnelSpec {
+    /// F = 1 (`"none"`).
+    None,
+    /// A conductor with complex index η + ik per RGB channel.
+    Conductor {
+        /// η per channel.
+        eta: [f64; 3],
+        /// k per channel.
+        k: [f64; 3],
+    },
+    /// A dielectric of index η.
+    Dielectric {
+        /// η.
+        eta: f64,
+    },
+}
+
+/// A material as `docs/eval.md` specifies it; `None` fields take the documented defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialSpec {
+    /// `"beckmann"` or `"ggx"`.
+    pub distribution: String,
+    /// α (α_x of an anisotropic material).
+    pub alpha: f64,
+    /// α_y; defaults to `alpha`.
+    pub alpha_y: Option<f64>,
+    /// N, a whole number in [1, 2⁵³].
+    pub particles: f64,
+    /// γ in degrees, in (0, 60].
+    pub gamma_deg: f64,
+    /// ε of Eq. 10; defaults to 0.1.
+    pub epsilon: Option<f64>,
+    /// The particle set, a whole number in [0, 1.8·10¹⁹); defaults to 0.
+    pub seed: Option<f64>,
+    /// The Fresnel term.
+    pub fresnel: FresnelSpec,
+    /// `"exact"` (the default) or `"normal"`.
+    pub multinomial: Option<String>,
+    /// The footprint area Eq. 11 plans for; defaults to 10⁻⁶.
+    pub expected_footprint_area: Option<f64>,
+    /// QMC points of the sampling pdf; defaults to 64.
+    pub pdf_points: Option<f64>,
+    /// Skip queries whose expected count is provably below this; defaults to 0.
+    pub negligible_count: Option<f64>,
+}
+
+/// The fields a JSON material may hold.
+const KNOWN_FIELDS: [&str; 12] = [
+    "distribution",
+    "alpha",
+    "alpha_y",
+    "particles",
+    "gamma_deg",
+    "epsilon",
+    "seed",
+    "fresnel",
+    "multinomial",
+    "expected_footprint_area",
+    "pdf_points",
+    "negligible_count",
+];
+
+impl MaterialSpec {
+    /// The required fields, every optional one at its default.
+    #[must_use]
+    pub fn new(distribution: &str, alpha: f64, particles: f64, gamma_deg: f64) -> Self {
+        Self {
+            distribution: distribution.to_owned(),
+            alpha,
+            alpha_y: None,
+            particles,
+            gamma_deg,
+            epsilon: None,
+            seed: None,
+            fresnel: FresnelSpec::None,
+            multinomial: None,
+            expected_footprint_area: None,
+            pdf_points: None,
+            negligible_count: None,
+        }
+    }
+
+    /// Validates the specification and builds the material (its count tree: a few ms).
+    ///
+    /// # Errors
+    /// A message naming the rejected field, as `docs/eval.md` lists them.
+    pub fn build(&self) -> Result<EvalMaterial, String> {
+        let parameters = self.parameters()?;
+        let brdf = DiscreteBrdf::new(parameters).map_err(|e| format!("material: {e}"))?;
+        Ok(EvalMaterial::new(brdf))
+    }
+
+    /// The validated parameters.
+    fn parameters(&self) -> Result<GlintParameters, String> {
+        let kind = match self.distribution.as_str() {
+            "beckmann" => DistributionKind::Beckmann,
+            "ggx" => DistributionKind::Ggx,
+            other => {
+                return Err(format!(
+                    "material.distribution `{other}` is unknown: use beckmann or ggx"
+                ));
+            }
+        };
+        let alpha = finite(self.alpha, "material.alpha")?;
+        let alpha_y = match self.alpha_y {
+            Some(a) => finite(a, "material.alpha_y")?,
+            None => alpha,
+        };
+        let distribution =
+            Microfacet::new(kind, alpha, alpha_y).map_err(|e| format!("material: {e}"))?;
+        let mut parameters = GlintParameters::new(distribution);
+        let particles = finite(self.particles, "material.particles")?;
+        if !(particles >= 1.0 && particles.fract() == 0.0 && particles <= 9.007_199_254_740_992e15)
+        {
+            return Err(format!(
+                "material.particles = {particles} must be a whole number in [1, 2^53]"
+            ));
+        }
+        parameters.particles = particles as u64;
+        parameters.gamma = finite(self.gamma_deg, "material.gamma_deg")?.to_radians();
+        if let Some(epsilon) = self.epsilon {
+            parameters.epsilon = finite(epsilon, "material.epsilon")?;
+        }
+        if let Some(seed) = self.seed {
+            let seed = finite(seed, "material.seed")?;
+            if !(seed >= 0.0 && seed.fract() == 0.0 && seed < 1.8e19) {
+                return Err(format!(
+                    "material.seed = {seed} must be a non-negative whole number"
+                ));
+            }
+            parameters.seed = seed as u64;
+        }
+        if let Some(area) = self.expected_footprint_area {
+            parameters.expected_footprint_area = finite(area, "material.expected_footprint_area")?;
+        }
+        if let Some(count) = self.negligible_count {
+            parameters.negligible_count = finite(count, "material.negligible_count")?;
+        }
+        if let Some(points) = self.pdf_points {
+            parameters.pdf_points = finite(points, "material.pdf_points")? as usize;
+        }
+        parameters.multinomial = match self.multinomial.as_deref() {
+            None | Some("exact") => MultinomialMode::Exact,
+            Some("normal") => MultinomialMode::Normal,
+            Some(other) => {
+                return Err(format!(
+                    "material.multinomial \"{other}\" is unknown: use \"exact\" or \"normal\""
+                ));
+            }
+        };
+        parameters.fresnel = match self.fresnel {
+            FresnelSpec::None => Fresnel::None,
+            FresnelSpec::Conductor { eta, k } => Fresnel::Conductor {
+                eta: DVec3::from_array(eta),
+                k: DVec3::from_array(k),
+            },
+            FresnelSpec::Dielectric { eta } => Fresnel::Dielectric { eta },
+        }
+        .validated()
+        .map_err(|e| format!("material: {e}"))?;
+        Ok(parameters)
+    }
+
+    /// The specification a JSON `material` object gives.
+    ///
+    /// # Errors
+    /// A message naming the field that is unknown, missing or of the wrong type.
+    pub fn from_json(material: &Value) -> Result<Self, String> {
+        let m = material.as_object().ok_or("`material` must be an object")?;
+        if let Some(unknown) = m.keys().find(|k| !KNOWN_FIELDS.contains(&k.as_str())) {
+            return Err(format!(
+                "unknown material field `{unknown}` (known: {})",
+                KNOWN_FIELDS.join(", ")
+            ));
+        }
+        let distribution = match m.get("distribution") {
+            Some(Value::String(name)) => name.clone(),
+            Some(other) => {
+                return Err(format!(
+                    "material.distribution {other} is unknown: use beckmann or ggx"
+                ));
+            }
+            None => return Err("material.distribution is missing: use beckmann or ggx".to_owned()),
+        };
+        let multinomial = match m.get("multinomial") {
+            None => None,
+            Some(Value::String(s)) => Some(s.clone()),
+            Some(other) => {
+                return Err(format!(
+                    "material.multinomial {other} is unknown: use \"exact\" or \"normal\""
+                ));
+            }
+        };
+        Ok(Self {
+            distribution,
+            alpha: number(m, "alpha", "material.alpha")?,
+            alpha_y: optional_number(m, "alpha_y", "material.alpha_y")?,
+            particles: number(m, "particles", "material.particles")?,
+            gamma_deg: number(m, "gamma_deg", "material.gamma_deg")?,
+            epsilon: optional_number(m, "epsilon", "material.epsilon")?,
+            seed: optional_number(m, "seed", "material.seed")?,
+            fresnel: fresnel_from_json(m.get("fresnel"))?,
+            multinomial,
+            expected_footprint_area: optional_number(
+                m,
+                "expected_footprint_area",
+                "material.expected_footprint_area",
+            )?,
+            pdf_points: optional_number(m, "pdf_points", "material.pdf_points")?,
+            negligible_count: optional_number(m, "negligible_count", "material.negligible_count")?,
+        })
+    }
+}
+
+fn finite(x: f64, name: &str) -> Result<f64, String> {
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(format!("{name} must be a finite number, not {x}"))
+    }
+}
+
+fn fresnel_from_json(value: Option<&Value>) -> Result<FresnelSpec, String> {
+    Ok(match value {
+        None => FresnelSpec::None,
+        Some(Value::String(s)) if s == "none" => FresnelSpec::None,
+        Some(Value::Object(o)) if o.len() == 1 && o.contains_key("conductor") => {
+            let c = o["conductor"]
+                .as_object()
+                .ok_or("material.fresnel.conductor must be an object")?;
+            FresnelSpec::Conductor {
+                eta: numbers_in::<3>(c, "eta", "material.fresnel.conductor.eta")?,
+                k: numbers_in::<3>(c, "k", "material.fresnel.conductor.k")?,
+            }
+        }
+        Some(Value::Object(o)) if o.len() == 1 && o.contains_key("dielectric") => {
+            let d = o["dielectric"]
+                .as_object()
+                .ok_or("material.fresnel.dielectric must be an object")?;
+            FresnelSpec::Dielectric {
+                eta: number(d, "eta", "material.fresnel.dielectric.eta")?,
+            }
+        }
+        Some(other) => {
+            return Err(format!(
+                "material.fresnel {other} is unknown: use \"none\", {{\"conductor\": {{\"eta\": [r,g,b], \"k\": [r,g,b]}}}} or {{\"dielectric\": {{\"eta\": x}}}}"
+            ));
+        }
+    })
+}
+
+/// A required finite number of a JSON object.
+pub(crate) fn number(object: &Map<String, Value>, key: &str, name: &str) -> Result<f64, String> {
+    optional_number(object, key, name)?.ok_or_else(|| format!("{name} is missing"))
+}
+
+/// An optional finite number of a JSON object.
+pub(crate) fn optional_number(
+    object: &Map<String, Value>,
+    key: &str,
+    name: &str,
+) -> Result<Option<f64>, String> {
+    match object.get(key) {
+        None => Ok(None),
+        Some(value) => match value.as_f64() {
+            Some(x) if x.is_finite() => Ok(Some(x)),
+            _ => Err(format!("{name} must be a finite number, not {value}")),
+        },
+    }
+}
+
+/// An array of N finite numbers of a JSON object.
+pub(crate) fn numbers_in<const N: usize>(
+    object: &Map<String, Value>,
+    key: &str,
+    name: &str,
+) -> Result<[f64; N], String> {
+    let array = object
+        .get(key)
+        .ok_or_else(|| format!("{name} is missing"))?
+        .as_array()
+        .filter(|a| a.len() == N)
+        .ok_or_else(|| format!("{name} must be an array of {N} numbers"))?;
+    let mut out = [0.0; N];
+    for (slot, value) in out.iter_mut().zip(array) {
+        *slot = value
+            .as_f64()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("{name} must hold finite numbers, not {value}"))?;
+    }
+    Ok(out)
+}

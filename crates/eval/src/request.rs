@@ -1,0 +1,218 @@
+//! The answers to `eval`, `sample` and `pdf` requests from plain numbers, validated as
+//! `docs/eval.md` says: directions are normalized (a zero or non-finite vector is an error, a
+//! direction below the horizon is valid and gives zeros), footprints must be finite, uniform
+//! numbers lie in [0, 1).
+
+use glint_brdf::{Bxdf, BxdfSample, DVec2, DVec3, DiscreteBrdf, Footprint, QueryScratch};
+
+/// A built material with what its answers need.
+#[derive(Clone, Debug)]
+pub struct EvalMaterial {
+    brdf: DiscreteBrdf,
+    gray: bool,
+}
+
+/// The answer to an `eval` request.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EvalAnswer {
+    /// Particles found.
+    pub count: f64,
+    /// Their expectation N·a(A)·∫p over the conic.
+    pub expected_count: f64,
+    /// D̂ of Eq. 6 (its first channel).
+    pub d_hat: f64,
+    /// f̂ per channel.
+    pub f_hat: DVec3,
+    /// The smooth BRDF per channel.
+    pub f_smooth: DVec3,
+    /// Tree nodes visited.
+    pub nodes_visited: u32,
+    /// `Some(λ̄)` when the query was skipped as negligible.
+    pub negligible_bound: Option<f64>,
+}
+
+/// The answer to a `sample` request that sampled a direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleAnswer {
+    /// The sampled direction.
+    pub wo: DVec3,
+    /// Its density.
+    pub pdf: f64,
+    /// f_smooth·cos θ_o / pdf per channel.
+    pub weight: DVec3,
+}
+
+impl EvalMaterial {
+    pub(crate) fn new(brdf: DiscreteBrdf) -> Self {
+        let gray = brdf.smooth().fresnel().is_gray();
+        Self { brdf, gray }
+    }
+
+    /// The material.
+    #[must_use]
+    pub fn brdf(&self) -> &DiscreteBrdf {
+        &self.brdf
+    }
+
+    /// Whether the Fresnel term is the same in every channel (colours are then one number).
+    #[must_use]
+    pub fn is_gray(&self) -> bool {
+        self.gray
+    }
+
+    /// The `eval` request: f̂ for the footprint {uv + s·duv_dx + t·duv_dy : s, t ∈ [−½, ½]}.
+    ///
+    /// # Errors
+    /// A message naming the invalid input (`wi`, `wo`, the footprint).
+    pub fn eval(
+        &self,
+        scratch: &mut QueryScratch,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        uv: [f64; 2],
+        duv_dx: [f64; 2],
+        duv_dy: [f64; 2],
+    ) -> Result<EvalAnswer, String> {
+        let wi = direction(wi, "wi")?;
+        let wo = direction(wo, "wo")?;
+        let uv = vector2(uv, "uv")?;
+        let duv_dx = vector2(duv_dx, "duv_dx")?;
+        let duv_dy = vector2(duv_dy, "duv_dy")?;
+        let footprint =
+            Footprint::new(uv, duv_dx, duv_dy).map_err(|e| format!("footprint: {e}"))?;
+        let bxdf = self.brdf.at(&footprint, scratch);
+        let e = bxdf.evaluate(wi, wo);
+        Ok(EvalAnswer {
+            count: e.count,
+            expected_count: bxdf.expected_count(wi, wo),
+            d_hat: e.d_hat.x,
+            f_hat: e.f_hat,
+            f_smooth: self.brdf.smooth().eval(wi, wo),
+            nodes_visited: e.nodes_visited,
+            negligible_bound: e.negligible,
+        })
+    }
+
+    /// The `sample` request with the glint sampler's four uniform numbers (see
+    /// [`uniforms_from_three`] for the three-number form): `None` when no direction is sampled.
+    ///
+    /// # Errors
+    /// A message naming the invalid input (`wi`, `u`).
+    pub fn sample(&self, wi: [f64; 3], u: [f64; 4]) -> Result<Option<SampleAnswer>, String> {
+        let wi = direction(wi, "wi")?;
+        check_uniforms(&u)?;
+        let brdf = &self.brdf;
+        Ok(brdf
+            .sample_direction(wi, u)
+            .and_then(|wo| {
+                BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
+            })
+            .map(|s| SampleAnswer {
+                wo: s.wo,
+                pdf: s.pdf,
+                weight: s.weight,
+            }))
+    }
+
+    /// The `pdf` request: the glint sampler's density.
+    ///
+    /// # Errors
+    /// A message naming the invalid direction.
+    pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3]) -> Result<f64, String> {
+        Ok(self
+            .brdf
+            .sampling_pdf(direction(wi, "wi")?, direction(wo, "wo")?))
+    }
+}
+
+/// A direction, normalized; zero and non-finite vectors are rejected. Vectors too long (or too
+/// short) to square are scaled by their largest component first.
+fn direction(v: [f64; 3], name: &str) -> Result<DVec3, String> {
+    let v = DVec3::from_array(v);
+    if !v.is_finite() {
+        return Err(format!("{name} must hold finite numbers, not {v}"));
+    }
+    if v == DVec3::ZERO {
+        return Err(format!("{name} has zero length"));
+    }
+    let squared = v.length_squared();
+    if squared.is_finite() && squared >= f64::MIN_POSITIVE {
+        return Ok(v.normalize());
+    }
+    // Too long (or short) to square: scale by the largest component first.
+    Ok((v / v.abs().max_element()).normalize())
+}
+
+fn vector2(v: [f64; 2], name: &str) -> Result<DVec2, String> {
+    let v = DVec2::from_array(v);
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{name} must hold finite numbers, not {v}"))
+    }
+}
+
+fn check_uniforms(u: &[f64]) -> Result<(), String> {
+    if u.iter().any(|x| !(0.0..1.0).contains(x)) {
+        return Err("`u` must hold numbers in [0, 1)".to_owned());
+    }
+    Ok(())
+}
+
+/// The four uniform numbers of the three-number form `[u0, u1, u2]` of a `sample` request
+/// (the form `eval` accepted first, kept so that such requests keep their meaning): u2's odd
+/// and even bits give the cone's two numbers ([`split_uniform`]).
+///
+/// # Errors
+/// When a number is outside [0, 1).
+pub fn uniforms_from_three(u: [f64; 3]) -> Result<[f64; 4], String> {
+    check_uniforms(&u)?;
+    let [c0, c1] = split_uniform(u[2]);
+    Ok([u[0], u[1], c0, c1])
+}
+
+/// Two uniforms from one: the odd and the even bits of its 52-bit mantissa fraction, bit
+/// 2k + 1 being the more significant of each pair (so the first carries the coarse half).
+#[must_use]
+pub fn split_uniform(u: f64) -> [f64; 2] {
+    let bits = (u.clamp(0.0, 1.0 - f64::EPSILON) * (1u64 << 52) as f64) as u64;
+    let (mut odd, mut even) = (0u64, 0u64);
+    for k in 0..26 {
+        odd |= ((bits >> (2 * k + 1)) & 1) << k;
+        even |= ((bits >> (2 * k)) & 1) << k;
+    }
+    let scale = 1.0 / (1u64 << 26) as f64;
+    [odd as f64 * scale, even as f64 * scale]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_uniform_gives_two_uniforms() {
+        let [a, b] = split_uniform(0.75);
+        assert!((0.0..1.0).contains(&a) && (0.0..1.0).contains(&b));
+        // 0.75 = 0b11 followed by zeros: the two coarsest bits go one to each half.
+        assert_eq!([a, b], [0.5, 0.5]);
+        // 0.625 = 0b101: bits 51 and 49, both odd-positioned, go to the first number.
+        assert_eq!(split_uniform(0.625), [0.75, 0.0]);
+    }
+
+    /// Huge but finite components are a valid direction (their squared length overflows).
+    #[test]
+    fn huge_directions_are_directions() {
+        let d = direction([1e200, 0.0, 1e200], "wi").unwrap();
+        assert!((d - DVec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-15);
+        assert!(
+            direction([0.0; 3], "wi")
+                .unwrap_err()
+                .contains("zero length")
+        );
+        assert!(
+            direction([f64::NAN, 0.0, 1.0], "wo")
+                .unwrap_err()
+                .contains("wo must hold finite")
+        );
+    }
+}
