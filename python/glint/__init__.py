@@ -1,0 +1,153 @@
+"""glint: glittery surfaces with the discrete stochastic microfacet model (Jakob et al. 2014).
+
+The interface mirrors ``cargo xtask eval`` (``docs/eval.md`` in the repository): the same
+material fields with the same defaults and meaning, the same answers bit for bit, the same
+error messages, over NumPy arrays of n rows. Rows are answered in parallel with the GIL
+released.
+
+>>> import numpy as np, glint
+>>> m = glint.Material(distribution="beckmann", alpha=0.1, particles=1e6, gamma_deg=1.0)
+>>> r = m.eval([0, 0, 1], [0.1, 0, 0.99], [0.3, 0.4], [1e-3, 0], [0, 1e-3])
+>>> bool(r["count"] >= 0 and r["error"] == "")
+True
+"""
+
+import json
+import math
+
+import numpy as np
+
+from ._glint import Material as _NativeMaterial
+from ._glint import __version__
+
+__all__ = ["Material", "__version__"]
+
+
+def _rows(name, value, width):
+    """A C-contiguous float64 array of shape (n, width) and whether the input was one row."""
+    array = np.ascontiguousarray(np.asarray(value, dtype=np.float64))
+    single = array.ndim == 1
+    if single:
+        array = array.reshape(1, -1)
+    if array.ndim != 2 or (width is not None and array.shape[1] != width):
+        wanted = f"(n, {width}) or ({width},)" if width is not None else "(n, k)"
+        raise ValueError(f"{name} must have shape {wanted}, not {np.shape(value)}")
+    return array, single
+
+
+def _finite(name, value):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"material.{name} must be a finite number, not {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"material.{name} must be a finite number, not {value}")
+    return int(value) if isinstance(value, (int, np.integer)) else float(value)
+
+
+class Material:
+    """A glint material, built once (a few ms) and reused for any number of queries.
+
+    Parameters have the names, defaults and meaning of ``docs/eval.md``'s material fields:
+    ``distribution`` ("beckmann" or "ggx"), roughness ``alpha`` and ``alpha_y`` (None: the
+    same as ``alpha``), ``particles`` N per unit texture square, ``gamma_deg`` the cone radius
+    γ in degrees, ``epsilon`` of Eq. 10 (0 = exact counts), ``seed`` the particle set,
+    ``fresnel`` (None, ``{"conductor": {"eta": [r, g, b], "k": [r, g, b]}}`` or
+    ``{"dielectric": {"eta": x}}``), ``multinomial`` ("exact" or "normal"),
+    ``negligible_count`` (skip queries whose expected count is provably below it; 0 = never),
+    and, keyword only, ``expected_footprint_area`` (Eq. 11) and ``pdf_points``.
+
+    Invalid parameters raise ``ValueError`` naming the parameter.
+    """
+
+    def __init__(self, distribution="beckmann", alpha=0.1, alpha_y=None, particles=1e6,
+                 gamma_deg=1.0, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
+                 negligible_count=0.0, *, expected_footprint_area=1e-6, pdf_points=64):
+        spec = {
+            "distribution": distribution,
+            "alpha": _finite("alpha", alpha),
+            "particles": _finite("particles", particles),
+            "gamma_deg": _finite("gamma_deg", gamma_deg),
+            "epsilon": _finite("epsilon", epsilon),
+            "seed": _finite("seed", seed),
+            "multinomial": multinomial,
+            "negligible_count": _finite("negligible_count", negligible_count),
+            "expected_footprint_area": _finite("expected_footprint_area",
+                                               expected_footprint_area),
+            "pdf_points": _finite("pdf_points", pdf_points),
+        }
+        if alpha_y is not None:
+            spec["alpha_y"] = _finite("alpha_y", alpha_y)
+        if fresnel is not None:
+            spec["fresnel"] = fresnel
+        try:
+            text = json.dumps(spec, allow_nan=False)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"material.fresnel {fresnel!r} is not valid: {error}") from None
+        self._native = _NativeMaterial(text)
+        self.gray = self._native.gray
+
+    def _colour(self, columns, prefix):
+        if self.gray:
+            return columns[f"{prefix}_r"]
+        return np.stack([columns[f"{prefix}_{c}"] for c in "rgb"], axis=1)
+
+    @staticmethod
+    def _finish(result, single):
+        result["error"] = np.array(result["error"], dtype=str)
+        if single:
+            result = {key: value[0] for key, value in result.items()}
+        return result
+
+    def eval(self, wi, wo, uv, duv_dx, duv_dy):
+        """f̂ and its statistics for n queries.
+
+        ``wi``, ``wo``: (n, 3) directions in the local frame (z = normal), normalized on input;
+        ``uv``, ``duv_dx``, ``duv_dy``: (n, 2), the footprint
+        {uv + s·duv_dx + t·duv_dy : s, t ∈ [−½, ½]}. Returns a dict of arrays: ``count``,
+        ``expected_count``, ``d_hat``, ``f_hat``, ``f_smooth`` ((n,) when F is grey, else
+        (n, 3)), ``nodes_visited``, ``negligible_bound`` (NaN where the query was traversed)
+        and ``error`` (empty where the row is valid, else the message ``eval`` gives; the
+        row's numbers are then NaN). 1-D inputs give one query's values.
+        """
+        wi, single = _rows("wi", wi, 3)
+        wo, _ = _rows("wo", wo, 3)
+        uv, _ = _rows("uv", uv, 2)
+        dx, _ = _rows("duv_dx", duv_dx, 2)
+        dy, _ = _rows("duv_dy", duv_dy, 2)
+        c = self._native.eval(wi, wo, uv, dx, dy)
+        result = {
+            "count": c["count"],
+            "expected_count": c["expected_count"],
+            "d_hat": c["d_hat"],
+            "f_hat": self._colour(c, "f_hat"),
+            "f_smooth": self._colour(c, "f_smooth"),
+            "nodes_visited": c["nodes_visited"],
+            "negligible_bound": c["negligible_bound"],
+            "error": c["error"],
+        }
+        return self._finish(result, single)
+
+    def sample(self, wi, u):
+        """Directions from the glint sampler (Sec. 3.4) for n rows.
+
+        ``u``: (n, 4) uniform numbers in [0, 1) (two for the widened lobe, two for the cone) or
+        (n, 3) in ``docs/eval.md``'s original form. Returns ``wo`` (n, 3), rows of NaN where no
+        direction is sampled; ``pdf`` (n,) and ``weight`` (n,) or (n, 3), f_smooth·cos θ_o/pdf,
+        both 0 where no direction is sampled; and ``error``.
+        """
+        wi, single = _rows("wi", wi, 3)
+        u, _ = _rows("u", u, None)
+        c = self._native.sample(wi, u)
+        result = {
+            "wo": np.stack([c["wo_x"], c["wo_y"], c["wo_z"]], axis=1),
+            "pdf": c["pdf"],
+            "weight": self._colour(c, "weight"),
+            "error": c["error"],
+        }
+        return self._finish(result, single)
+
+    def pdf(self, wi, wo):
+        """The glint sampler's density of ``wo`` for n rows: (n,), NaN on invalid rows."""
+        wi, single = _rows("wi", wi, 3)
+        wo, _ = _rows("wo", wo, 3)
+        p = self._native.pdf(wi, wo)["pdf"]
+        return p[0] if single else p

@@ -1,0 +1,249 @@
+//! # glint-python: the Python module `glint._glint`
+//!
+//! **Invariant: this module adds transport only.** Every material and every row goes through
+//! glint-eval, the contract of `docs/eval.md` that `cargo xtask eval` also uses, so the same
+//! inputs give the same numbers bit for bit and the same error messages. The pure-Python
+//! package `glint` (`glint/__init__.py`) holds the documented signatures and shapes; this
+//! module takes C-contiguous float64 arrays of n rows and returns flat columns.
+//!
+//! Rows are answered in parallel (rayon, one query scratch per worker) with the GIL released;
+//! each row's answer depends only on the row, so the thread count never changes a result.
+
+use glint_brdf::QueryScratch;
+use glint_eval::{EvalMaterial, MaterialSpec, uniforms_from_three};
+use numpy::{PyArray1, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+/// Rows per parallel task: large enough that scheduling is cheap next to ~1–20 µs queries.
+const ROWS_PER_TASK: usize = 256;
+
+/// A built glint material (see `glint.Material`).
+#[pyclass(frozen, module = "glint._glint")]
+struct Material {
+    inner: EvalMaterial,
+}
+
+/// The rows of an (n, k) float64 array as `[f64; K]`, checking k.
+fn rows<const K: usize>(array: &PyReadonlyArray2<'_, f64>, name: &str) -> PyResult<Vec<[f64; K]>> {
+    let view = array.as_array();
+    if view.ncols() != K {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape (n, {K}), not {:?}",
+            view.shape()
+        )));
+    }
+    Ok(view
+        .rows()
+        .into_iter()
+        .map(|row| std::array::from_fn(|k| row[k]))
+        .collect())
+}
+
+fn same_length(n: usize, others: &[(usize, &str)]) -> PyResult<()> {
+    for (len, name) in others {
+        if *len != n {
+            return Err(PyValueError::new_err(format!(
+                "{name} has {len} rows where wi has {n}"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Answers every row in parallel, one scratch per task.
+fn answer_rows<I: Sync, O: Send>(
+    inputs: &[I],
+    answer: impl Fn(&mut QueryScratch, &I) -> O + Sync,
+) -> Vec<O> {
+    inputs
+        .par_chunks(ROWS_PER_TASK)
+        .flat_map_iter(|chunk| {
+            let mut scratch = QueryScratch::new();
+            chunk
+                .iter()
+                .map(|input| answer(&mut scratch, input))
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// The columns of n answers of K numbers each (NaN where a row failed) and the rows' error
+/// messages (empty where a row succeeded), as a dict of flat float64 arrays named `names`
+/// plus `error`.
+fn columns<'py, const K: usize>(
+    py: Python<'py>,
+    names: [&str; K],
+    answers: Vec<Result<[f64; K], String>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    for (k, name) in names.iter().enumerate() {
+        let column: Vec<f64> = answers
+            .iter()
+            .map(|a| a.as_ref().map_or(f64::NAN, |row| row[k]))
+            .collect();
+        dict.set_item(*name, PyArray1::from_vec(py, column))?;
+    }
+    let errors: Vec<String> = answers
+        .into_iter()
+        .map(|a| a.err().unwrap_or_default())
+        .collect();
+    dict.set_item("error", errors)?;
+    Ok(dict)
+}
+
+#[pymethods]
+impl Material {
+    /// Builds a material from its `docs/eval.md` JSON object.
+    #[new]
+    fn new(material_json: &str) -> PyResult<Self> {
+        let value: serde_json::Value = serde_json::from_str(material_json)
+            .map_err(|e| PyValueError::new_err(format!("invalid material JSON: {e}")))?;
+        let inner = MaterialSpec::from_json(&value)
+            .and_then(|spec| spec.build())
+            .map_err(PyValueError::new_err)?;
+        Ok(Self { inner })
+    }
+
+    /// Whether f_hat, f_smooth and weights are one number per row.
+    #[getter]
+    fn gray(&self) -> bool {
+        self.inner.is_gray()
+    }
+
+    /// The `eval` op over n rows: flat columns `count`, `expected_count`, `d_hat`, `f_hat_r`,
+    /// `f_hat_g`, `f_hat_b`, `f_smooth_r`, …, `nodes_visited`, `negligible_bound` (NaN where the
+    /// query was traversed) and `error`.
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        wi: PyReadonlyArray2<'py, f64>,
+        wo: PyReadonlyArray2<'py, f64>,
+        uv: PyReadonlyArray2<'py, f64>,
+        duv_dx: PyReadonlyArray2<'py, f64>,
+        duv_dy: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (wi, wo) = (rows::<3>(&wi, "wi")?, rows::<3>(&wo, "wo")?);
+        let (uv, dx, dy) = (
+            rows::<2>(&uv, "uv")?,
+            rows::<2>(&duv_dx, "duv_dx")?,
+            rows::<2>(&duv_dy, "duv_dy")?,
+        );
+        same_length(
+            wi.len(),
+            &[(wo.len(), "wo"), (uv.len(), "uv"), (dx.len(), "duv_dx"), (dy.len(), "duv_dy")],
+        )?;
+        let indices: Vec<usize> = (0..wi.len()).collect();
+        let material = &self.inner;
+        let answers = py.detach(|| {
+            answer_rows(&indices, |scratch, &i| {
+                material
+                    .eval(scratch, wi[i], wo[i], uv[i], dx[i], dy[i])
+                    .map(|e| {
+                        [
+                            e.count,
+                            e.expected_count,
+                            e.d_hat,
+                            e.f_hat.x,
+                            e.f_hat.y,
+                            e.f_hat.z,
+                            e.f_smooth.x,
+                            e.f_smooth.y,
+                            e.f_smooth.z,
+                            f64::from(e.nodes_visited),
+                            e.negligible_bound.unwrap_or(f64::NAN),
+                        ]
+                    })
+            })
+        });
+        columns(
+            py,
+            [
+                "count",
+                "expected_count",
+                "d_hat",
+                "f_hat_r",
+                "f_hat_g",
+                "f_hat_b",
+                "f_smooth_r",
+                "f_smooth_g",
+                "f_smooth_b",
+                "nodes_visited",
+                "negligible_bound",
+            ],
+            answers,
+        )
+    }
+
+    /// The `sample` op over n rows of 3 or 4 uniform numbers: flat columns `wo_x`, `wo_y`,
+    /// `wo_z` (NaN where no direction is sampled), `pdf`, `weight_r`, `weight_g`, `weight_b`
+    /// (0 where no direction is sampled) and `error`.
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        wi: PyReadonlyArray2<'py, f64>,
+        u: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let wi = rows::<3>(&wi, "wi")?;
+        let u: Vec<Result<[f64; 4], String>> = match u.as_array().ncols() {
+            3 => rows::<3>(&u, "u")?
+                .into_iter()
+                .map(uniforms_from_three)
+                .collect(),
+            _ => rows::<4>(&u, "u")
+                .map_err(|_| {
+                    PyValueError::new_err(format!(
+                        "u must have shape (n, 4), or (n, 3) in the original form, not {:?}",
+                        u.as_array().shape()
+                    ))
+                })?
+                .into_iter()
+                .map(Ok)
+                .collect(),
+        };
+        same_length(wi.len(), &[(u.len(), "u")])?;
+        let indices: Vec<usize> = (0..wi.len()).collect();
+        let material = &self.inner;
+        let answers = py.detach(|| {
+            answer_rows(&indices, |_, &i| {
+                let u = u[i].clone()?;
+                Ok(match material.sample(wi[i], u)? {
+                    Some(s) => [s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z],
+                    None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
+                })
+            })
+        });
+        columns(
+            py,
+            ["wo_x", "wo_y", "wo_z", "pdf", "weight_r", "weight_g", "weight_b"],
+            answers,
+        )
+    }
+
+    /// The `pdf` op over n rows: columns `pdf` and `error`.
+    fn pdf<'py>(
+        &self,
+        py: Python<'py>,
+        wi: PyReadonlyArray2<'py, f64>,
+        wo: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (wi, wo) = (rows::<3>(&wi, "wi")?, rows::<3>(&wo, "wo")?);
+        same_length(wi.len(), &[(wo.len(), "wo")])?;
+        let indices: Vec<usize> = (0..wi.len()).collect();
+        let material = &self.inner;
+        let answers = py.detach(|| {
+            answer_rows(&indices, |_, &i| material.pdf(wi[i], wo[i]).map(|p| [p]))
+        });
+        columns(py, ["pdf"], answers)
+    }
+}
+
+/// The native part of the Python package `glint`.
+#[pymodule]
+fn _glint(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_class::<Material>()?;
+    module.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

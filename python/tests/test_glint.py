@@ -1,0 +1,213 @@
+"""The Python package against its contract: the same answers as `cargo xtask eval`, bit for
+bit, for the same inputs; errors per row and per parameter; shapes; determinism under
+parallelism."""
+
+import json
+import math
+import os
+import pathlib
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+import glint
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+MATERIALS = [
+    dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_deg=1.0, seed=7),
+    dict(distribution="ggx", alpha=0.05, alpha_y=0.3, particles=2e7, gamma_deg=3.0,
+         epsilon=0.0, seed=3, multinomial="normal"),
+    dict(distribution="beckmann", alpha=0.2, particles=1e6, gamma_deg=2.0,
+         fresnel={"conductor": {"eta": [0.2, 0.9, 1.1], "k": [3.9, 2.4, 2.2]}}),
+    dict(distribution="beckmann", alpha=0.1, particles=1e12, gamma_deg=0.5,
+         negligible_count=1e-12, fresnel={"dielectric": {"eta": 1.5}}),
+]
+
+
+def _json_material(kwargs):
+    """The same material as a docs/eval.md JSON object."""
+    spec = dict(kwargs)
+    return spec
+
+
+def _queries(n, seed):
+    """n random queries near and away from the highlight, with a few awkward rows."""
+    rng = np.random.default_rng(seed)
+    theta = rng.uniform(0, 1.4, n)
+    phi = rng.uniform(0, 2 * np.pi, n)
+    wi = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], 1)
+    mirror = wi * np.array([-1.0, -1.0, 1.0])
+    wo = mirror + rng.normal(0, 0.08, (n, 3))
+    wo[::5, 2] = -0.2  # some below the horizon
+    uv = rng.uniform(-2, 3, (n, 2))
+    side = 10 ** rng.uniform(-4, -1.5, n)
+    dx = np.stack([side, rng.normal(0, 0.2, n) * side], 1)
+    dy = np.stack([rng.normal(0, 0.2, n) * side, side], 1)
+    u = rng.uniform(0, 1, (n, 4))
+    return wi, wo, uv, dx, dy, u
+
+
+def _xtask_eval(lines):
+    """Answers from `cargo xtask eval`, one dict per line."""
+    command = os.environ.get("GLINT_XTASK")
+    command = [command, "eval"] if command else [
+        "cargo", "run", "--release", "--quiet", "-p", "xtask", "--", "eval"]
+    done = subprocess.run(command, input="\n".join(lines) + "\n", capture_output=True,
+                          text=True, cwd=REPO, check=False)
+    answers = [json.loads(line) for line in done.stdout.splitlines()]
+    assert len(answers) == len(lines), done.stderr[-2000:]
+    return answers
+
+
+def _same(a, b):
+    """Bit-identical floats (NaN equal to NaN)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return a.shape == b.shape and bool(np.all((a == b) | (np.isnan(a) & np.isnan(b))))
+
+
+@pytest.mark.parametrize("index", range(len(MATERIALS)))
+def test_eval_sample_pdf_match_json_lines_bit_for_bit(index):
+    kwargs = MATERIALS[index]
+    m = glint.Material(**kwargs)
+    wi, wo, uv, dx, dy, u = _queries(120, seed=index)
+    material = _json_material(kwargs)
+    lines = []
+    for i in range(len(wi)):
+        common = {"material": material, "wi": wi[i].tolist()}
+        lines.append(json.dumps({"op": "eval", **common, "wo": wo[i].tolist(),
+                                 "uv": uv[i].tolist(), "duv_dx": dx[i].tolist(),
+                                 "duv_dy": dy[i].tolist()}))
+        lines.append(json.dumps({"op": "sample", **common, "u": u[i].tolist()}))
+        lines.append(json.dumps({"op": "sample", **common, "u": u[i, :3].tolist()}))
+        lines.append(json.dumps({"op": "pdf", **common, "wo": wo[i].tolist()}))
+    answers = _xtask_eval(lines)
+    r = m.eval(wi, wo, uv, dx, dy)
+    s4 = m.sample(wi, u)
+    s3 = m.sample(wi, u[:, :3])
+    p = m.pdf(wi, wo)
+    found = 0
+    for i in range(len(wi)):
+        e, a4, a3, ap = answers[4 * i: 4 * i + 4]
+        assert "error" not in e, e
+        assert r["error"][i] == ""
+        for key in ("count", "expected_count", "d_hat", "f_hat", "f_smooth", "nodes_visited"):
+            assert _same(r[key][i], e[key]), (i, key, r[key][i], e[key])
+        bound = e.get("negligible_bound", math.nan)
+        assert _same(r["negligible_bound"][i], bound)
+        found += r["count"][i] > 0
+        for sample, answer in ((s4, a4), (s3, a3)):
+            if answer["wo"] is None:
+                assert np.all(np.isnan(sample["wo"][i])) and sample["pdf"][i] == 0
+            else:
+                assert _same(sample["wo"][i], answer["wo"])
+                assert _same(sample["pdf"][i], answer["pdf"])
+                assert _same(sample["weight"][i], answer["weight"])
+        assert _same(p[i], ap["pdf"])
+    assert found > 0, "the comparison must include queries that find particles"
+
+
+def test_single_query_gives_scalars():
+    m = glint.Material(particles=1e9, seed=7)
+    r = m.eval([0, 0, 1], [0.1, 0, 0.99], [0.3, 0.4], [1e-3, 0], [0, 1e-3])
+    assert np.ndim(r["count"]) == 0 and r["error"] == ""
+    batch = m.eval([[0, 0, 1]], [[0.1, 0, 0.99]], [[0.3, 0.4]], [[1e-3, 0]], [[0, 1e-3]])
+    assert r["count"] == batch["count"][0] and r["f_hat"] == batch["f_hat"][0]
+    s = m.sample([0, 0, 1], [0.3, 0.6, 0.2, 0.9])
+    assert s["wo"].shape == (3,)
+    assert np.ndim(m.pdf([0, 0, 1], [0.1, 0, 0.99])) == 0
+
+
+def test_coloured_fresnel_gives_rgb_columns():
+    m = glint.Material(**MATERIALS[2])
+    wi, wo, uv, dx, dy, u = _queries(10, seed=9)
+    r = m.eval(wi, wo, uv, dx, dy)
+    assert r["f_hat"].shape == (10, 3) and r["f_smooth"].shape == (10, 3)
+    assert m.sample(wi, u)["weight"].shape == (10, 3)
+    grey = glint.Material()
+    assert grey.eval(wi, wo, uv, dx, dy)["f_hat"].shape == (10,)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(alpha=2.0), "alpha"),
+    (dict(alpha=math.nan), "material.alpha"),
+    (dict(alpha_y=-1.0), "alpha"),
+    (dict(particles=1.5), "material.particles"),
+    (dict(particles=0), "material.particles"),
+    (dict(gamma_deg=90), "gamma"),
+    (dict(distribution="beckman"), "material.distribution"),
+    (dict(multinomial="approximate"), "material.multinomial"),
+    (dict(seed=-1), "material.seed"),
+    (dict(epsilon=-0.5), "epsilon"),
+    (dict(negligible_count=-1.0), "negligible count"),
+    (dict(fresnel={"conductor": {"eta": [1, 1], "k": [0, 0, 0]}}), "material.fresnel.conductor.eta"),
+    (dict(fresnel={"metal": 1}), "material.fresnel"),
+    (dict(fresnel={"dielectric": {"eta": math.inf}}), "material.fresnel"),
+    (dict(pdf_points=0), "pdf quadrature points"),
+])
+def test_bad_parameters_raise_value_error_naming_them(kwargs, name):
+    with pytest.raises(ValueError, match=name.replace(".", r"\.")):
+        glint.Material(**kwargs)
+
+
+def test_bad_rows_do_not_abort_the_batch_and_give_evals_message():
+    m = glint.Material(particles=1e9, seed=7)
+    good = ([0, 0, 1], [0.1, 0, 0.99], [0.3, 0.4], [1e-3, 0], [0, 1e-3])
+    rows = [list(good) for _ in range(5)]
+    rows[1][0] = [0, 0, 0]            # a zero vector
+    rows[2][1] = [math.nan, 0, 1]     # NaN
+    rows[3][3] = [math.inf, 0]        # a non-finite footprint
+    rows[4][2] = [0.3, 0.4]
+    columns = [np.array([row[k] for row in rows], dtype=float) for k in range(5)]
+    r = m.eval(*columns)
+    assert list(r["error"][[0, 4]]) == ["", ""]
+    assert r["error"][1] == "wi has zero length"
+    assert r["error"][2].startswith("wo must hold finite numbers")
+    assert r["error"][3].startswith("duv_dx must hold finite numbers")
+    for key in ("count", "f_hat", "expected_count", "nodes_visited"):
+        assert np.all(np.isnan(r[key][1:4])) and not np.isnan(r[key][0])
+    assert r["count"][0] == r["count"][4]
+    # The zero-vector message is eval's own.
+    line = json.dumps({"op": "eval", "material": MATERIALS[0], "wi": [0, 0, 0],
+                       "wo": [0.1, 0, 0.99], "uv": [0.3, 0.4], "duv_dx": [1e-3, 0],
+                       "duv_dy": [0, 1e-3]})
+    assert _xtask_eval([line])[0]["error"] == "line 1: wi has zero length"
+    s = m.sample([[0, 0, 1], [0, 0, 1]], [[0.1, 0.2, 0.3, 1.0], [0.1, 0.2, 0.3, 0.4]])
+    assert "[0, 1)" in s["error"][0] and s["error"][1] == ""
+    assert np.all(np.isnan(s["wo"][0]))
+    assert np.isnan(m.pdf([[0, 0, 0]], [[0, 0, 1]])[0])
+
+
+def test_shape_mismatches_raise():
+    m = glint.Material()
+    with pytest.raises(ValueError, match="wo"):
+        m.eval(np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((3, 2)), np.zeros((3, 2)),
+               np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="uv"):
+        m.eval(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 2)),
+               np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="u must have shape"):
+        m.sample(np.zeros((3, 3)), np.zeros((3, 5)))
+
+
+def test_batches_are_deterministic_in_any_split_and_thread():
+    m = glint.Material(particles=1e8, seed=1)
+    wi, wo, uv, dx, dy, _ = _queries(3000, seed=11)
+    whole = m.eval(wi, wo, uv, dx, dy)
+    parts = [m.eval(wi[k:k + 7], wo[k:k + 7], uv[k:k + 7], dx[k:k + 7], dy[k:k + 7])
+             for k in range(0, 3000, 7)]
+    for key in ("count", "f_hat", "nodes_visited"):
+        assert _same(whole[key], np.concatenate([p[key] for p in parts]))
+    results = [None, None]
+
+    def run(slot):
+        results[slot] = m.eval(wi, wo, uv, dx, dy)
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(_same(r["f_hat"], whole["f_hat"]) for r in results)
