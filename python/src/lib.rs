@@ -133,7 +133,12 @@ impl Material {
         );
         same_length(
             wi.len(),
-            &[(wo.len(), "wo"), (uv.len(), "uv"), (dx.len(), "duv_dx"), (dy.len(), "duv_dy")],
+            &[
+                (wo.len(), "wo"),
+                (uv.len(), "uv"),
+                (dx.len(), "duv_dx"),
+                (dy.len(), "duv_dy"),
+            ],
         )?;
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
@@ -210,14 +215,18 @@ impl Material {
             answer_rows(&indices, |_, &i| {
                 let u = u[i].clone()?;
                 Ok(match material.sample(wi[i], u)? {
-                    Some(s) => [s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z],
+                    Some(s) => [
+                        s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z,
+                    ],
                     None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
                 })
             })
         });
         columns(
             py,
-            ["wo_x", "wo_y", "wo_z", "pdf", "weight_r", "weight_g", "weight_b"],
+            [
+                "wo_x", "wo_y", "wo_z", "pdf", "weight_r", "weight_g", "weight_b",
+            ],
             answers,
         )
     }
@@ -233,9 +242,8 @@ impl Material {
         same_length(wi.len(), &[(wo.len(), "wo")])?;
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
-        let answers = py.detach(|| {
-            answer_rows(&indices, |_, &i| material.pdf(wi[i], wo[i]).map(|p| [p]))
-        });
+        let answers =
+            py.detach(|| answer_rows(&indices, |_, &i| material.pdf(wi[i], wo[i]).map(|p| [p])));
         columns(py, ["pdf"], answers)
     }
 }
