@@ -1,0 +1,193 @@
+//! The types that cross the boundary: status codes, the enumerations of material settings, the
+//! `#[repr(C)]` structs passed by pointer, and the two opaque handles.
+//!
+//! Enumerators carry their C names (C enumerators share one namespace, hence the `GLINT_`
+//! prefix). Struct fields that hold an enumeration are `uint32_t`, not the enum type: a C
+//! caller may store any integer there, and reading an out-of-range value into a Rust enum would
+//! be undefined behaviour; the value is validated instead.
+
+use std::ffi::c_int;
+
+use glint_brdf::{DiscreteBrdf, QueryScratch};
+
+/// What a call did: `GLINT_OK`, or why it failed (then `glint_last_error()` says more).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(non_camel_case_types)] // the C names
+pub enum GlintStatus {
+    /// Success.
+    GLINT_OK = 0,
+    /// A required pointer argument was NULL.
+    GLINT_NULL_POINTER = 1,
+    /// A material parameter is invalid (`glint_material_new`).
+    GLINT_INVALID_PARAMETER = 2,
+    /// A query argument is invalid: a direction that is not finite or is zero, a footprint
+    /// that is not finite, uniform numbers outside [0, 1).
+    GLINT_INVALID_ARGUMENT = 3,
+    /// An internal error: glint panicked. The panic was caught at the boundary; the message
+    /// says where. Please report it.
+    GLINT_PANIC = 4,
+}
+
+/// The microfacet distribution of the flake normals (`GlintMaterialParams::distribution`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(non_camel_case_types)] // the C names
+pub enum GlintDistribution {
+    /// Beckmann.
+    GLINT_BECKMANN = 0,
+    /// GGX (Trowbridge–Reitz).
+    GLINT_GGX = 1,
+}
+
+/// The Fresnel term (`GlintMaterialParams::fresnel`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(non_camel_case_types)] // the C names
+pub enum GlintFresnel {
+    /// F = 1.
+    GLINT_FRESNEL_NONE = 0,
+    /// A conductor with complex index `conductor_eta` + i `conductor_k` per RGB channel.
+    GLINT_FRESNEL_CONDUCTOR = 1,
+    /// A dielectric with relative index `dielectric_eta`.
+    GLINT_FRESNEL_DIELECTRIC = 2,
+}
+
+/// How a tree node's particles are divided among its children
+/// (`GlintMaterialParams::multinomial`); the two give different particle sets.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(non_camel_case_types)] // the C names
+pub enum GlintMultinomial {
+    /// Exact multinomial draws.
+    GLINT_MULTINOMIAL_EXACT = 0,
+    /// The paper's normal approximation.
+    GLINT_MULTINOMIAL_NORMAL = 1,
+}
+
+/// The parameters of a glint material. Fill it with `glint_material_params_default`, change
+/// what you need, and pass it to `glint_material_new`, which validates every field.
+///
+/// | field | default | allowed |
+/// |---|---|---|
+/// | `distribution` | `GLINT_BECKMANN` | a `GlintDistribution` |
+/// | `alpha_x`, `alpha_y` | 0.1 | [1e-4, 1] |
+/// | `particles` | 1e6 | a whole number in [1, 2^53] |
+/// | `gamma_degrees` | 1 | (0, 60] |
+/// | `epsilon` | 0.1 | >= 0 (0 = exact counts) |
+/// | `seed` | 0 | any |
+/// | `fresnel` | `GLINT_FRESNEL_NONE` | a `GlintFresnel` |
+/// | `conductor_eta`, `conductor_k` | {1, 1, 1}, {0, 0, 0} | eta > 0, k >= 0 |
+/// | `dielectric_eta` | 1.5 | > 0 |
+/// | `multinomial` | `GLINT_MULTINOMIAL_EXACT` | a `GlintMultinomial` |
+/// | `expected_footprint_area` | 1e-6 | > 0 |
+/// | `pdf_points` | 64 | 1 to 4096 |
+/// | `negligible_count` | 0 | >= 0 (0 = every query traversed) |
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlintMaterialParams {
+    /// The distribution D of the flake normals: a `GlintDistribution`.
+    pub distribution: u32,
+    /// Roughness along x (the texture's u direction).
+    pub alpha_x: f64,
+    /// Roughness along y (equal to `alpha_x` for an isotropic material).
+    pub alpha_y: f64,
+    /// N, flakes per unit texture square: a whole number in [1, 2^53].
+    pub particles: f64,
+    /// γ, the radius of the cone around the outgoing direction, in degrees.
+    pub gamma_degrees: f64,
+    /// ε of Eq. 10: a partly covered node whose expected error is below ε times the count so
+    /// far adds its expected share instead of splitting (0 = exact counts).
+    pub epsilon: f64,
+    /// Which particle set.
+    pub seed: u64,
+    /// The Fresnel term: a `GlintFresnel`.
+    pub fresnel: u32,
+    /// The conductor's η per RGB channel (used with `GLINT_FRESNEL_CONDUCTOR`).
+    pub conductor_eta: [f64; 3],
+    /// The conductor's k per RGB channel (used with `GLINT_FRESNEL_CONDUCTOR`).
+    pub conductor_k: [f64; 3],
+    /// The dielectric's relative index η (used with `GLINT_FRESNEL_DIELECTRIC`).
+    pub dielectric_eta: f64,
+    /// Exact multinomial splits or the paper's normal approximation: a `GlintMultinomial`.
+    pub multinomial: u32,
+    /// The footprint area (texture units) the tree is shaped for (Eq. 11).
+    pub expected_footprint_area: f64,
+    /// Quasi-Monte Carlo points of the sampler's pdf.
+    pub pdf_points: u32,
+    /// τ: a query whose expected count is provably below τ is answered 0 without a traversal.
+    pub negligible_count: f64,
+}
+
+/// A pixel's texture-space footprint: the parallelogram
+/// {uv + s·duv_dx + t·duv_dy : s, t in [-1/2, 1/2]}. The texture repeats; a zero-area
+/// footprint is valid and finds nothing.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlintFootprint {
+    /// The centre (u, v).
+    pub uv: [f64; 2],
+    /// The change of (u, v) across the pixel in x.
+    pub duv_dx: [f64; 2],
+    /// The change of (u, v) across the pixel in y.
+    pub duv_dy: [f64; 2],
+}
+
+/// One glint evaluation: f̂ with what its count-tree query found.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlintEvaluation {
+    /// f̂ per RGB channel, the discrete BRDF (Eq. 5, corrected normalization).
+    pub f_hat: [f64; 3],
+    /// D̂ of Eq. 6 per channel: the count over N.
+    pub d_hat: [f64; 3],
+    /// Particles found (fractional where Eq. 10 stopped early with ε > 0).
+    pub count: f64,
+    /// Tree nodes tested against the query.
+    pub nodes_visited: u32,
+    /// The visited nodes that meet the query.
+    pub nodes_overlapping: u32,
+    /// 1 when the query was skipped as negligible (then every other field but
+    /// `negligible_bound` is 0), else 0.
+    pub skipped_as_negligible: c_int,
+    /// λ̄, the proven bound on the expected count of a skipped query; 0 otherwise.
+    pub negligible_bound: f64,
+}
+
+/// A sampled outgoing direction.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlintSample {
+    /// The direction (unit, above the horizon).
+    pub wo: [f64; 3],
+    /// Its density in solid angle.
+    pub pdf: f64,
+    /// f·cos θ_o / pdf per RGB channel: the reflected radiance for unit radiance from `wo`.
+    pub weight: [f64; 3],
+    /// 1 for a sample, 0 when none was drawn (then every other field is 0).
+    pub valid: c_int,
+}
+
+/// A glint material (opaque): its particle set, sampler and smooth limit. Immutable once
+/// built: share one between any number of threads.
+#[derive(Debug)]
+pub struct GlintMaterial {
+    pub(crate) brdf: DiscreteBrdf,
+}
+
+/// A query's working memory (opaque): one per thread, reused across queries and materials.
+#[derive(Debug, Default)]
+pub struct GlintScratch {
+    pub(crate) scratch: QueryScratch,
+    /// Set during a query; still set at the next call only if that query panicked, and then
+    /// the scratch's memo tables are not trusted and are replaced.
+    pub(crate) in_query: bool,
+}
+
+// The thread-safety contract stated in the crate documentation rests on these.
+const _: () = {
+    const fn shared_between_threads<T: Send + Sync>() {}
+    const fn moved_between_threads<T: Send>() {}
+    shared_between_threads::<DiscreteBrdf>();
+    moved_between_threads::<QueryScratch>();
+};
