@@ -145,7 +145,11 @@ def test_coloured_fresnel_gives_rgb_columns():
     (dict(fresnel={"conductor": {"eta": [1, 1], "k": [0, 0, 0]}}), "material.fresnel.conductor.eta"),
     (dict(fresnel={"metal": 1}), "material.fresnel"),
     (dict(fresnel={"dielectric": {"eta": math.inf}}), "material.fresnel"),
-    (dict(pdf_points=0), "pdf quadrature points"),
+    (dict(pdf_points=0), "material.pdf_points"),
+    (dict(pdf_points=2.5), "material.pdf_points"),
+    (dict(gamma_deg=1e-300), "material.gamma_deg"),
+    (dict(epsilon=1e300), "epsilon"),
+    (dict(expected_footprint_area=0.0), "expected footprint area"),
 ])
 def test_bad_parameters_raise_value_error_naming_them(kwargs, name):
     with pytest.raises(ValueError, match=name.replace(".", r"\.")):

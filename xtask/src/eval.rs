@@ -28,22 +28,79 @@ pub(crate) fn run(path: Option<&std::path::Path>) -> anyhow::Result<usize> {
     Ok(failed)
 }
 
-/// Answers every line of `input` on `output`; returns how many lines failed.
-pub(crate) fn process(input: impl BufRead, output: &mut impl Write) -> anyhow::Result<usize> {
+/// The longest request line read, in bytes (a request is well under a kilobyte): a longer
+/// line is answered with an error and skipped without being held in memory.
+pub(crate) const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// One line of input: its bytes, or how long it was when it exceeded [`MAX_LINE_BYTES`].
+enum Line {
+    Text(Vec<u8>),
+    TooLong(usize),
+}
+
+/// The next line of `input` without its newline, holding at most [`MAX_LINE_BYTES`] of it;
+/// `None` at the end of the input.
+fn next_line(input: &mut impl BufRead) -> std::io::Result<Option<Line>> {
+    let mut bytes = Vec::new();
+    let mut length = 0usize;
+    loop {
+        let buffer = input.fill_buf()?;
+        if buffer.is_empty() {
+            return Ok((length > 0).then(|| finish(bytes, length)));
+        }
+        let (chunk, ends_line) = match buffer.iter().position(|&b| b == b'\n') {
+            Some(end) => (&buffer[..end], true),
+            None => (buffer, false),
+        };
+        length += chunk.len();
+        if length <= MAX_LINE_BYTES {
+            bytes.extend_from_slice(chunk);
+        } else {
+            bytes = Vec::new();
+        }
+        let consumed = chunk.len() + usize::from(ends_line);
+        input.consume(consumed);
+        if ends_line {
+            return Ok(Some(finish(bytes, length)));
+        }
+    }
+}
+
+fn finish(mut bytes: Vec<u8>, length: usize) -> Line {
+    if length > MAX_LINE_BYTES {
+        return Line::TooLong(length);
+    }
+    if bytes.last() == Some(&b'\r') {
+        bytes.pop();
+    }
+    Line::Text(bytes)
+}
+
+/// Answers every line of `input` on `output`; returns how many lines failed. A line that is
+/// too long or not UTF-8 fails alone: the lines after it are answered.
+pub(crate) fn process(mut input: impl BufRead, output: &mut impl Write) -> anyhow::Result<usize> {
     let mut requests = JsonLines::new();
     let mut failed = 0;
-    for (number, line) in input.lines().enumerate() {
-        let line = line.with_context(|| format!("reading line {}", number + 1))?;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let answer = match requests.answer(&line) {
-            Ok(value) => value,
-            Err(message) => {
-                failed += 1;
-                json!({ "error": format!("line {}: {message}", number + 1) })
-            }
+    let mut number = 0;
+    while let Some(line) = next_line(&mut input).context("reading the input")? {
+        number += 1;
+        let answer = match line {
+            Line::TooLong(length) => Err(format!(
+                "the line is {length} bytes long, more than the {MAX_LINE_BYTES} a request may take"
+            )),
+            Line::Text(bytes) => match String::from_utf8(bytes) {
+                Err(e) => Err(format!(
+                    "the line is not UTF-8 text (invalid byte at offset {})",
+                    e.utf8_error().valid_up_to()
+                )),
+                Ok(text) if text.trim().is_empty() => continue,
+                Ok(text) => requests.answer(&text),
+            },
         };
+        let answer = answer.unwrap_or_else(|message| {
+            failed += 1;
+            json!({ "error": format!("line {number}: {message}") })
+        });
         writeln!(output, "{answer}")?;
     }
     Ok(failed)
@@ -92,6 +149,90 @@ mod tests {
         assert!(values[1].get("negligible_bound").is_none(), "{}", values[1]);
         let message = values[2]["error"].as_str().unwrap_or_default();
         assert!(message.contains("negligible count"), "{message}");
+    }
+
+    /// A line too long to hold, or not UTF-8, fails alone; the next line is answered.
+    #[test]
+    fn bad_lines_fail_alone() {
+        let eval = format!(
+            r#"{{"op": "pdf", "material": {MATERIAL}, "wi": [0.2, 0.0, 1.0], "wo": [-0.2, 0.0, 1.0]}}"#
+        );
+        let mut input = Vec::new();
+        input.extend_from_slice(&vec![b'x'; MAX_LINE_BYTES + 10]);
+        input.push(b'\n');
+        input.extend_from_slice(b"{\"op\": \xff\xfe}\n");
+        input.extend_from_slice(eval.as_bytes());
+        input.extend_from_slice(b"\r\n");
+        input.extend_from_slice(&vec![b' '; MAX_LINE_BYTES + 1]);
+        let mut output = Vec::new();
+        let failed = process(&input[..], &mut output).unwrap();
+        let values: Vec<Value> = String::from_utf8(output)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(values.len(), 4, "{values:?}");
+        assert_eq!(failed, 3);
+        assert!(
+            values[0]["error"]
+                .as_str()
+                .unwrap()
+                .starts_with("line 1: the line is 1048586 bytes")
+        );
+        assert!(
+            values[1]["error"]
+                .as_str()
+                .unwrap()
+                .contains("line 2: the line is not UTF-8")
+        );
+        assert!(values[2]["pdf"].as_f64().unwrap() > 0.0, "{}", values[2]);
+        assert!(
+            values[3]["error"]
+                .as_str()
+                .unwrap()
+                .starts_with("line 4: the line is")
+        );
+    }
+
+    /// Nonsense is refused with a message naming the field and echoing the value as given.
+    #[test]
+    fn out_of_range_values_are_named_and_echoed() {
+        let eval = format!(
+            r#"{{"op": "eval", "material": {MATERIAL}, "uv": [0.3, 0.4], "duv_dx": [0.001, 0.0], "duv_dy": [0.0, 0.001], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+        );
+        let with = |field: &str| eval.replace("\"seed\": 7", &format!("\"seed\": 7, {field}"));
+        let cases = [
+            (
+                with("\"pdf_points\": -3"),
+                "material.pdf_points = -3.0 must be a whole number",
+            ),
+            (
+                with("\"pdf_points\": 1e30"),
+                "material.pdf_points = 1e30 must be",
+            ),
+            (with("\"epsilon\": 1e300"), "epsilon = 1e300 is invalid"),
+            (
+                with("\"expected_footprint_area\": 0"),
+                "expected footprint area 0.0",
+            ),
+            (
+                eval.replace("\"gamma_deg\": 1.0", "\"gamma_deg\": 1e-300"),
+                "material.gamma_deg = 1e-300",
+            ),
+            (eval.replace("\"op\"", "\"opp\""), "unknown field `opp`"),
+            (
+                eval.replace("\"uv\"", "\"colour\": 1, \"uv\""),
+                "unknown field `colour`",
+            ),
+        ];
+        let lines: Vec<String> = cases.iter().map(|(l, _)| l.clone()).collect();
+        let (values, failed) = run_lines(&lines);
+        assert_eq!(failed, cases.len());
+        for (value, (_, expected)) in values.iter().zip(&cases) {
+            let message = value["error"].as_str().unwrap_or_default();
+            assert!(message.contains(expected), "{message} lacks {expected}");
+            assert!(message.len() < 400, "{message}");
+        }
     }
 
     /// The three-number `u` is the four-number one with its third number split; both forms

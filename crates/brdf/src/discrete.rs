@@ -63,7 +63,7 @@ use crate::smooth::{MicrofacetBrdf, above_horizon};
 /// |---|---|---|
 /// | `distribution` | D and its roughness (α_x, α_y) | — |
 /// | `particles` | N, flakes per unit texture square | 10⁶ |
-/// | `gamma` | the cone radius γ (radians), in (0, 60°] | 1° |
+/// | `gamma` | the cone radius γ (radians), in [10⁻⁶, 60°] | 1° |
 /// | `epsilon` | ε of Eq. 10 (0 = exact) | 0.1 |
 /// | `seed` | the particle set | 0 |
 /// | `fresnel` | F | none (F = 1) |
@@ -79,7 +79,7 @@ pub struct GlintParameters {
     pub distribution: Microfacet,
     /// N, particles per unit texture square.
     pub particles: u64,
-    /// The cone radius γ in radians, in (0, 60°].
+    /// The cone radius γ in radians, in [10⁻⁶, 60°].
     pub gamma: f64,
     /// ε of Eq. 10 (0 = exact).
     pub epsilon: f64,
@@ -160,8 +160,12 @@ impl DiscreteBrdf {
     /// A [`BrdfError`] naming the invalid parameter.
     pub fn new(parameters: GlintParameters) -> Result<Self, BrdfError> {
         let gamma = parameters.gamma;
-        if !(gamma > 0.0 && gamma <= 60f64.to_radians()) {
+        if !(gamma >= 1e-6 && gamma <= 60f64.to_radians()) {
             return Err(BrdfError::InvalidConeRadius { gamma });
+        }
+        let area = parameters.expected_footprint_area;
+        if !(area > 0.0 && area.is_finite()) {
+            return Err(BrdfError::InvalidExpectedFootprintArea { area });
         }
         if !(parameters.sampling_scale >= 1.0 && parameters.sampling_scale.is_finite()) {
             return Err(BrdfError::InvalidSamplingScale {
@@ -290,6 +294,7 @@ impl DiscreteBrdf {
                         nodes_visited: 0,
                         nodes_overlapping: 0,
                         truncated: false,
+                        periodic_average: false,
                     },
                     f_hat: DVec3::ZERO,
                     negligible: Some(bound),

@@ -12,7 +12,8 @@ pub enum BrdfError {
     },
     /// A Fresnel parameter (η or k) was not finite or not positive (k may be 0).
     InvalidFresnel,
-    /// The cone radius γ must be finite and in (0, 60°].
+    /// The cone radius γ must be in [10⁻⁶ rad, 60°] (below 10⁻⁶ rad, about 0.2 arc seconds, the
+    /// conic's solid angle loses its precision).
     InvalidConeRadius {
         /// The rejected value (radians).
         gamma: f64,
@@ -26,6 +27,11 @@ pub enum BrdfError {
     InvalidNegligibleCount {
         /// The rejected value.
         count: f64,
+    },
+    /// The expected footprint area (Eq. 11) must be finite and > 0.
+    InvalidExpectedFootprintArea {
+        /// The rejected value.
+        area: f64,
     },
     /// The pdf's quadrature needs 1 to 4096 points.
     InvalidPdfPoints {
@@ -42,7 +48,7 @@ impl fmt::Display for BrdfError {
             Self::InvalidRoughness { alpha } => {
                 write!(
                     f,
-                    "roughness alpha = {alpha} is invalid: it must be finite and in [1e-4, 1]"
+                    "roughness alpha = {alpha:?} is invalid: it must be finite and in [1e-4, 1]"
                 )
             }
             Self::InvalidFresnel => {
@@ -50,17 +56,21 @@ impl fmt::Display for BrdfError {
             }
             Self::InvalidConeRadius { gamma } => write!(
                 f,
-                "cone radius gamma = {gamma} rad is invalid: it must be finite and in (0, 60 degrees]"
+                "cone radius gamma = {gamma:?} rad is invalid: it must be in [1e-6 rad, 60 degrees]"
             ),
             Self::InvalidSamplingScale { scale } => {
                 write!(
                     f,
-                    "sampling roughness scale {scale} is invalid: it must be finite and >= 1"
+                    "sampling roughness scale {scale:?} is invalid: it must be finite and >= 1"
                 )
             }
             Self::InvalidNegligibleCount { count } => write!(
                 f,
-                "negligible count {count} is invalid: it must be finite and >= 0 (0 disables it)"
+                "negligible count {count:?} is invalid: it must be finite and >= 0 (0 disables it)"
+            ),
+            Self::InvalidExpectedFootprintArea { area } => write!(
+                f,
+                "expected footprint area {area:?} is invalid: it must be finite and > 0 (texture units)"
             ),
             Self::InvalidPdfPoints { points } => {
                 write!(f, "{points} pdf quadrature points requested: use 1 to 4096")

@@ -452,7 +452,9 @@ fn field_of(error: glint_brdf::BrdfError, p: &GlintMaterialParams) -> &'static s
         E::InvalidNegligibleCount { .. } => "negligible_count",
         E::InvalidPdfPoints { .. } => "pdf_points",
         E::Tree(TreeError::InvalidEpsilon { .. }) => "epsilon",
-        E::Tree(TreeError::InvalidExpectedQuery) => "expected_footprint_area",
+        E::InvalidExpectedFootprintArea { .. } | E::Tree(TreeError::InvalidExpectedQuery) => {
+            "expected_footprint_area"
+        }
         E::Tree(TreeError::ParticleCountOutOfRange { .. }) => "particles",
         _ => "params",
     }

@@ -16,7 +16,9 @@ use glint_eval::MaterialSpec;
 use rayon::prelude::*;
 
 fn main() -> Result<(), String> {
-    let path = std::env::args().nth(1).ok_or("usage: throughput QUERIES.f64")?;
+    let path = std::env::args()
+        .nth(1)
+        .ok_or("usage: throughput QUERIES.f64")?;
     let bytes = std::fs::read(&path).map_err(|e| format!("{path}: {e}"))?;
     let numbers: Vec<f64> = bytes
         .chunks_exact(8)
@@ -74,9 +76,16 @@ fn main() -> Result<(), String> {
             DVec2::new(q[10], q[11]),
         )
         .map_err(|e| e.to_string())?;
-        renderer_total += material.brdf().at(&footprint, &mut scratch).evaluate(wi, wo).count;
+        renderer_total += material
+            .brdf()
+            .at(&footprint, &mut scratch)
+            .evaluate(wi, wo)
+            .count;
     }
-    report("DiscreteBrdf::at(..).evaluate alone, one thread", start.elapsed().as_secs_f64());
+    report(
+        "DiscreteBrdf::at(..).evaluate alone, one thread",
+        start.elapsed().as_secs_f64(),
+    );
     println!("particles found: {total} (parallel {parallel}, renderer's call {renderer_total})");
     Ok(())
 }

@@ -125,11 +125,19 @@ impl MaterialSpec {
         if !(particles >= 1.0 && particles.fract() == 0.0 && particles <= 9.007_199_254_740_992e15)
         {
             return Err(format!(
-                "material.particles = {particles} must be a whole number in [1, 2^53]"
+                "material.particles = {particles:?} must be a whole number in [1, 2^53]"
             ));
         }
         parameters.particles = particles as u64;
-        parameters.gamma = finite(self.gamma_deg, "material.gamma_deg")?.to_radians();
+        let gamma_deg = finite(self.gamma_deg, "material.gamma_deg")?;
+        // The library's bounds, [10⁻⁶ rad, 60°], in the unit of this field.
+        if !(gamma_deg >= 1e-6f64.to_degrees() && gamma_deg <= 60.0) {
+            return Err(format!(
+                "material.gamma_deg = {gamma_deg:?} must be in [{:.3e}, 60] degrees",
+                1e-6f64.to_degrees()
+            ));
+        }
+        parameters.gamma = gamma_deg.to_radians();
         if let Some(epsilon) = self.epsilon {
             parameters.epsilon = finite(epsilon, "material.epsilon")?;
         }
@@ -137,7 +145,7 @@ impl MaterialSpec {
             let seed = finite(seed, "material.seed")?;
             if !(seed >= 0.0 && seed.fract() == 0.0 && seed < 1.8e19) {
                 return Err(format!(
-                    "material.seed = {seed} must be a non-negative whole number"
+                    "material.seed = {seed:?} must be a whole number in [0, 1.8e19)"
                 ));
             }
             parameters.seed = seed as u64;
@@ -149,7 +157,13 @@ impl MaterialSpec {
             parameters.negligible_count = finite(count, "material.negligible_count")?;
         }
         if let Some(points) = self.pdf_points {
-            parameters.pdf_points = finite(points, "material.pdf_points")? as usize;
+            let points = finite(points, "material.pdf_points")?;
+            if !(points.fract() == 0.0 && (1.0..=4096.0).contains(&points)) {
+                return Err(format!(
+                    "material.pdf_points = {points:?} must be a whole number in [1, 4096]"
+                ));
+            }
+            parameters.pdf_points = points as usize;
         }
         parameters.multinomial = match self.multinomial.as_deref() {
             None | Some("exact") => MultinomialMode::Exact,
@@ -228,7 +242,7 @@ fn finite(x: f64, name: &str) -> Result<f64, String> {
     if x.is_finite() {
         Ok(x)
     } else {
-        Err(format!("{name} must be a finite number, not {x}"))
+        Err(format!("{name} must be a finite number, not {x:?}"))
     }
 }
 

@@ -10,7 +10,8 @@ pub enum TreeError {
         /// The rejected value.
         particles: u64,
     },
-    /// ε (Eq. 10) must be finite and ≥ 0.
+    /// ε (Eq. 10) must be in [0, 1]: it is a relative error, and above 1 Eq. 10 would accept
+    /// any partial node's expected share as its count.
     InvalidEpsilon {
         /// The rejected value.
         epsilon: f64,
@@ -49,7 +50,7 @@ impl fmt::Display for TreeError {
             Self::InvalidEpsilon { epsilon } => {
                 write!(
                     f,
-                    "epsilon = {epsilon} is invalid: it must be finite and >= 0"
+                    "epsilon = {epsilon:?} is invalid: it must be in [0, 1] (a relative error; 0 = exact)"
                 )
             }
             Self::InvalidExpectedQuery => write!(

@@ -203,6 +203,14 @@ impl Footprint {
         self.area
     }
 
+    /// How many unit tiles its axis-aligned bounding box touches: the texture rows times the
+    /// texture columns it spans (at least 1; infinite past 2⁵³ per side).
+    #[must_use]
+    pub fn tiles_spanned(&self) -> f64 {
+        let span = |lo: f64, hi: f64| hi.floor() - lo.floor() + 1.0;
+        span(self.min.x, self.max.x) * span(self.min.y, self.max.y)
+    }
+
     /// Whether the parallelogram has no area (a degenerate footprint sees no particles).
     #[must_use]
     pub fn is_degenerate(&self) -> bool {

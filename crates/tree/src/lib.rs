@@ -53,5 +53,6 @@ pub use node::NodeId;
 pub use sampling::MultinomialMode;
 pub use tree::{
     CountTree, CountTreeConfig, DirectionalLawExcess, LEAF_CELL_ARC, LEAF_PARTICLES,
-    MAX_CACHED_LEVELS, MAX_PARTICLES, QueryResult, QueryScratch, expected_conic_solid_angle,
+    MAX_CACHED_LEVELS, MAX_PARTICLES, ManyTiles, QueryResult, QueryScratch,
+    expected_conic_solid_angle,
 };

@@ -16,6 +16,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glint_sphere::OverlapMethod;
 
 use crate::error::TreeError;
+use crate::footprint::Footprint;
 use crate::ndf::{DirectionalSplits, NdfQuadrature, NormalDensity, QuadratureTolerance};
 use crate::sampling::MultinomialMode;
 use crate::tea::DEFAULT_ROUNDS;
@@ -75,12 +76,64 @@ pub struct CountTreeConfig {
     /// Particle areas per colour channel (Sec. 3.4, Fig. 8): 0 for none (each particle counts
     /// 1/N), 1 for gray areas, 3 for RGB.
     pub colour_channels: usize,
+    /// When a footprint covers so many tiles that its count is taken as a periodic average
+    /// (an approximation; [`ManyTiles::EXACT`] turns it off).
+    pub many_tiles: ManyTiles,
+}
+
+/// Footprints over many texture tiles: beyond these limits a query answers with the periodic
+/// average A·C, the footprint's area A (in tiles) times the exact count C of one whole tile,
+/// instead of resolving every particle's multiplicity m(x), the number of its translates inside
+/// the footprint.
+///
+/// Why: a particle at x counts m(x) times, and m is constant only between the footprint's
+/// edges wrapped into the unit square. A footprint L tiles across wraps its edges about L times
+/// over the square, so the traversal must resolve boxes down to about 1/L, at a cost that grows
+/// with the tiles covered (a 3000 × 3000-tile footprint took 20 s at ε = 0); a long thin
+/// footprint at an irrational slope wraps into a dense set of strips the same way.
+///
+/// The error: the mean of m over the square is exactly A, so A·C − Σ m(x) = Σ (A − m(x)) over
+/// the C particles found, a sum of terms bounded by the footprint's perimeter in tiles whose
+/// mean over positions is zero. It is measured in `tests` against exact queries: see
+/// `docs/performance.md` ("Speed against accuracy").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ManyTiles {
+    /// Footprints of a larger area (in tiles) are averaged.
+    pub max_area: f64,
+    /// Footprints whose bounding box spans more tiles than this are averaged (long thin ones).
+    pub max_tiles_spanned: f64,
+}
+
+impl ManyTiles {
+    /// Every footprint resolved exactly, whatever it costs.
+    pub const EXACT: Self = Self {
+        max_area: f64::INFINITY,
+        max_tiles_spanned: f64::INFINITY,
+    };
+
+    /// Whether a query of `footprint` is answered by its periodic average.
+    #[must_use]
+    pub fn averages(&self, footprint: &Footprint) -> bool {
+        footprint.area() > self.max_area || footprint.tiles_spanned() > self.max_tiles_spanned
+    }
+}
+
+impl Default for ManyTiles {
+    /// Averages above 256 tiles of area or 4096 tiles spanned: an exact query then costs at
+    /// most about what a 16 × 16-tile footprint costs.
+    fn default() -> Self {
+        Self {
+            max_area: 256.0,
+            max_tiles_spanned: 4096.0,
+        }
+    }
 }
 
 impl Default for CountTreeConfig {
     /// N = 10⁶, seed 0, ε = 0.1, exact multinomials, planar overlaps, a footprint of 10⁻⁶
     /// (a pixel of ~1000² over the texture) and the conic of γ = 1° at normal incidence,
-    /// δ = 1e-5, 8 TEA cycles, depth guard 64, 6 cached levels, node budget 10⁶, no colour.
+    /// δ = 1e-5, 8 TEA cycles, depth guard 64, 6 cached levels, node budget 10⁶, no colour,
+    /// footprints over more than 256 tiles (or spanning 4096) averaged.
     fn default() -> Self {
         let gamma = 1f64.to_radians();
         Self {
@@ -97,6 +150,7 @@ impl Default for CountTreeConfig {
             cached_levels: 6,
             node_budget: 1_000_000,
             colour_channels: 0,
+            many_tiles: ManyTiles::default(),
         }
     }
 }
@@ -170,7 +224,7 @@ impl CountTree {
                 particles: config.particles,
             });
         }
-        if !(config.epsilon >= 0.0 && config.epsilon.is_finite()) {
+        if !(0.0..=1.0).contains(&config.epsilon) {
             return Err(TreeError::InvalidEpsilon {
                 epsilon: config.epsilon,
             });

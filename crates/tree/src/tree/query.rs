@@ -51,6 +51,9 @@ pub struct QueryResult {
     /// Whether the node budget cut the traversal short (the count is then partly an
     /// expectation, even with ε = 0).
     pub truncated: bool,
+    /// Whether the footprint covered more tiles than [`super::CountTreeConfig::many_tiles`] allows
+    /// and the count is its periodic average: the area times one whole tile's count.
+    pub periodic_average: bool,
 }
 
 /// A node waiting in a query's queue, with the query's answers for it: how its box meets the
@@ -94,6 +97,9 @@ impl CountTree {
         let mut truncated = false;
         if footprint.is_degenerate() {
             return self.result(0.0, area_sums, [visited, overlapping], truncated);
+        }
+        if self.config.many_tiles.averages(footprint) {
+            return self.periodic_average(footprint, conic, scratch);
         }
         let QueryScratch {
             queue,
@@ -309,6 +315,27 @@ impl CountTree {
             nodes_visited,
             nodes_overlapping,
             truncated,
+            periodic_average: false,
+        }
+    }
+
+    /// The count of a footprint over many tiles by its periodic average (see [`super::ManyTiles`]):
+    /// its area times the count of one whole tile, where every particle has multiplicity 1.
+    fn periodic_average(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        scratch: &mut QueryScratch,
+    ) -> QueryResult {
+        let tile = Footprint::new(DVec2::splat(0.5), DVec2::X, DVec2::Y)
+            .expect("the unit square is a finite footprint");
+        let one = self.query(&tile, conic, scratch);
+        let area = footprint.area();
+        QueryResult {
+            count: one.count * area,
+            d_hat: one.d_hat.map(|d| d * area),
+            periodic_average: true,
+            ..one
         }
     }
 
