@@ -9,5 +9,6 @@ rm -rf "$venv"
 python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet --upgrade pip
 "$venv/bin/pip" install --quiet "./python[test]"
+"$venv/bin/pip" install --quiet -r python/mitsuba/requirements.txt
 cargo build --release --quiet -p xtask
 GLINT_XTASK="$target/release/xtask" "$venv/bin/python" -m pytest -q python/tests
