@@ -20,6 +20,32 @@
 //!   one from two threads at once. It may move between threads and serves every material.
 //! - `glint_last_error` is per thread: it reports the calling thread's last call.
 //! - Freeing a handle while another thread uses it is undefined behaviour, as in any C API.
+//!
+//! The calls a C program makes, here from Rust (`crates/capi/examples/c/query.c` is the same
+//! in C):
+//!
+//! ```
+//! use std::mem::MaybeUninit;
+//! use std::ptr;
+//! use glint::*;
+//!
+//! unsafe {
+//!     let mut params = MaybeUninit::<GlintMaterialParams>::uninit();
+//!     assert_eq!(glint_material_params_default(params.as_mut_ptr()), GlintStatus::GLINT_OK);
+//!     let (mut material, mut scratch) = (ptr::null_mut(), ptr::null_mut());
+//!     assert_eq!(glint_material_new(params.as_ptr(), &mut material), GlintStatus::GLINT_OK);
+//!     assert_eq!(glint_scratch_new(&mut scratch), GlintStatus::GLINT_OK);
+//!     let footprint = GlintFootprint { uv: [0.3, 0.4], duv_dx: [0.01, 0.0], duv_dy: [0.0, 0.01] };
+//!     let (wi, wo) = ([0.0, 0.0, 1.0], [0.1, 0.0, 0.99]);
+//!     let mut e = MaybeUninit::<GlintEvaluation>::uninit();
+//!     let status = glint_eval(material, scratch, &footprint, wi.as_ptr(), wo.as_ptr(), e.as_mut_ptr());
+//!     assert_eq!(status, GlintStatus::GLINT_OK);
+//!     let e = e.assume_init();
+//!     assert!(e.count >= 0.0 && e.nodes_visited > 0);
+//!     glint_scratch_free(scratch);
+//!     glint_material_free(material);
+//! }
+//! ```
 #![deny(missing_docs)]
 // The boundary receives raw pointers from C, and reading them needs `unsafe`; the workspace
 // denies `unsafe_code` everywhere else. Each block here is small, follows a NULL check and
