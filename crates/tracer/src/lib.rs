@@ -73,6 +73,8 @@ pub mod camera;
 pub mod distribution;
 mod error;
 pub mod film;
+#[cfg(test)]
+mod fuzz;
 pub mod image;
 pub mod integrator;
 pub mod light;
