@@ -39,6 +39,14 @@ pub enum TracerError {
         /// What went wrong.
         problem: String,
     },
+    /// The camera cannot form an image at a frame: the pose interpolated between keyframes is
+    /// degenerate (the eye at the look-at point, up along the view direction).
+    Camera {
+        /// The frame.
+        frame: f64,
+        /// What is wrong with the pose.
+        problem: String,
+    },
     /// Render settings out of range (resolution, samples per pixel, depth).
     Settings {
         /// The setting at fault.
@@ -68,6 +76,9 @@ impl fmt::Display for TracerError {
             }
             Self::Output { path, problem } => {
                 write!(f, "cannot write {}: {}", shown(path), echo_lines(problem))
+            }
+            Self::Camera { frame, problem } => {
+                write!(f, "camera at frame {frame}: {}", echo_lines(problem))
             }
             Self::Settings { setting, problem } => {
                 write!(f, "render setting {setting}: {}", echo_lines(problem))

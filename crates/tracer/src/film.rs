@@ -136,7 +136,8 @@ pub fn validate_settings(settings: &RenderSettings) -> Result<(), TracerError> {
 /// Renders `scene` at camera frame `frame`; `progress(done, total)` is called as tiles finish.
 ///
 /// # Errors
-/// [`TracerError::Settings`] for settings out of range.
+/// [`TracerError::Settings`] for settings out of range, [`TracerError::Camera`] when the
+/// camera's pose at `frame` is degenerate.
 pub fn render(
     scene: &Scene,
     settings: &RenderSettings,
@@ -146,7 +147,10 @@ pub fn render(
     validate_settings(settings)?;
     let start = Instant::now();
     let (width, height) = (settings.width, settings.height);
-    let view = scene.camera.view(frame, width, height);
+    let view = scene
+        .camera
+        .checked_view(frame, width, height)
+        .map_err(|problem| TracerError::Camera { frame, problem })?;
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
     let total = u64::from(tiles_x * tiles_y);
@@ -450,6 +454,46 @@ power = 20
             unreachable!("two materials")
         };
         assert!(dense.nodes_per_query() > sparse.nodes_per_query() + 4.0);
+    }
+
+    /// A frame whose interpolated camera pose is degenerate is an error naming the frame, not
+    /// a black image; the frames around it render.
+    #[test]
+    fn degenerate_frames_are_errors_naming_the_frame() {
+        let s = scene(
+            r#"
+[render]
+resolution = [8, 6]
+spp = 1
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+[[camera.keyframes]]
+frame = 0
+[[camera.keyframes]]
+frame = 10
+position = [0, 0, -5]
+[materials.grey]
+type = "diffuse"
+[[shapes]]
+type = "sphere"
+center = [0, -2, 0]
+radius = 1
+material = "grey"
+[[lights]]
+type = "directional"
+direction = [0, 1, 0]
+irradiance = 1
+"#,
+        );
+        assert!(render(&s, &s.settings, 4.0, &|_, _| {}).is_ok());
+        match render(&s, &s.settings, 5.0, &|_, _| {}) {
+            Err(error @ TracerError::Camera { frame, .. }) => {
+                assert_eq!(frame, 5.0);
+                assert!(error.to_string().contains("frame 5"), "{error}");
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     /// The image is bit-identical for one thread and for several, glints included.
