@@ -366,9 +366,27 @@ impl RgbImage {
     /// Writes a linear 32-bit float RGB OpenEXR file.
     ///
     /// # Errors
-    /// [`TracerError::Output`] when the file cannot be written.
+    /// [`TracerError::Output`] when the file cannot be written, or when a pixel is not finite
+    /// or beyond the 32-bit float range (it would be written as infinity); rendered images
+    /// never are (see [`crate::render`]).
     pub fn write_exr(&self, path: &Path) -> Result<(), TracerError> {
         use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+        let largest = f64::from(f32::MAX);
+        if let Some(i) = self
+            .pixels
+            .iter()
+            .position(|p| !(p.is_finite() && p.abs().max_element() <= largest))
+        {
+            return Err(TracerError::Output {
+                path: path.to_path_buf(),
+                problem: format!(
+                    "pixel ({}, {}) is {}: not a finite 32-bit float",
+                    i % self.width.max(1),
+                    i / self.width.max(1),
+                    self.pixels[i]
+                ),
+            });
+        }
         let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let p = self.pixels[y * self.width + x];
             (p.x as f32, p.y as f32, p.z as f32)
@@ -539,6 +557,24 @@ mod tests {
         let message = RgbImage::load(&path).unwrap_err().to_string();
         assert!(message.contains("huge.exr"), "{message}");
         assert!(message.contains("60000 × 60000"), "{message}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Pixels that single precision cannot hold are refused when an EXR is written, never
+    /// written as infinities.
+    #[test]
+    fn exr_output_refuses_non_finite_pixels() {
+        let dir = std::env::temp_dir().join(format!("glint-exr-inf-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for bad in [f64::INFINITY, f64::NAN, 1e39] {
+            let mut image = gradient();
+            image.pixels[7] = DVec3::new(0.5, bad, 0.5);
+            let message = image
+                .write_exr(&dir.join("bad.exr"))
+                .unwrap_err()
+                .to_string();
+            assert!(message.contains("pixel (2, 1)"), "{message}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
