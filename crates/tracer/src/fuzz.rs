@@ -1,12 +1,15 @@
 //! Test support shared by the tracer's property tests: the proptest configuration (a fixed
 //! seed, deterministic) and small fixtures.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use proptest::test_runner::{Config, RngSeed};
 
+use crate::error::TracerError;
 use crate::image::RgbImage;
+use crate::limits;
+use crate::scene_file::parse_scene;
 
 /// The proptest configuration of the tracer's property and fuzz tests: `cases` cases from a
 /// fixed seed, no regression files. For a longer search, `GLINT_FUZZ_SCALE=k` runs k times the
@@ -99,4 +102,70 @@ pub(crate) fn small_exr(dir: &Path) -> Vec<u8> {
     .write_exr(&path)
     .unwrap();
     std::fs::read(&path).unwrap()
+}
+
+/// A small closed mesh with normals and texture coordinates (an octahedron).
+pub(crate) const OCTAHEDRON_OBJ: &str = "\
+v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1
+vt 0 0\nvt 1 0\nvt 0.5 1
+vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1
+f 1/1/1 3/2/3 5/3/5\nf 3/1/3 2/2/2 5/3/5\nf 2/1/2 4/2/4 5/3/5\nf 4/1/4 1/2/1 5/3/5
+f 3/1/3 1/2/1 6/3/6\nf 2/1/2 3/2/3 6/3/6\nf 4/1/4 2/2/2 6/3/6\nf 1/1/1 4/2/4 6/3/6
+";
+
+/// A folder of its own under the temporary directory, with tiny stand-ins for the scenes'
+/// assets (`assets/vase.obj`, `assets/twisted_torus.obj`, `assets/sky.png`,
+/// `assets/stained_glass.png`), removed when dropped.
+pub(crate) struct Fixture {
+    pub(crate) dir: PathBuf,
+}
+
+impl Fixture {
+    pub(crate) fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("glint-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("assets")).unwrap();
+        for mesh in ["vase.obj", "twisted_torus.obj"] {
+            std::fs::write(dir.join("assets").join(mesh), OCTAHEDRON_OBJ).unwrap();
+        }
+        std::fs::write(dir.join("assets/sky.png"), small_png(8, 4)).unwrap();
+        std::fs::write(dir.join("assets/stained_glass.png"), small_png(3, 4)).unwrap();
+        Self { dir }
+    }
+
+    pub(crate) fn scene_path(&self) -> PathBuf {
+        self.dir.join("scene.toml")
+    }
+}
+
+impl Drop for Fixture {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// Renders `text` as a scene beside the fixture's assets at 6 × 4 pixels, one sample, paths of
+/// at most three bounces, at `frame`: `Err` when the scene (or the camera at `frame`) is
+/// refused, else the image, whose every pixel must be finite, non-negative and at most
+/// [`limits::MAX_SAMPLE_RADIANCE`].
+pub(crate) fn render_tiny(
+    fixture: &Fixture,
+    text: &str,
+    frame: f64,
+) -> Result<RgbImage, TracerError> {
+    let scene = parse_scene(text, &fixture.scene_path())?;
+    let mut settings = scene.settings;
+    settings.width = 6;
+    settings.height = 4;
+    settings.samples_per_pixel = 1;
+    settings.max_depth = settings.max_depth.min(3);
+    let output = crate::render(&scene, &settings, frame, &|_, _| {})?;
+    for p in &output.image.pixels {
+        assert!(
+            p.is_finite()
+                && p.min_element() >= 0.0
+                && p.max_element() <= limits::MAX_SAMPLE_RADIANCE,
+            "pixel {p} from\n{text}"
+        );
+    }
+    Ok(output.image)
 }
