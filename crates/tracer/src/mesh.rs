@@ -9,26 +9,63 @@ use crate::error::TracerError;
 use crate::limits;
 use crate::shape::{Ray, SurfaceHit};
 
-/// Checks the numbers of the OBJ's `v`, `vn` and `vt` statements before parsing: positions
-/// finite and within [`limits::MAX_COORDINATE`], normals and texture coordinates finite, each
-/// as the single-precision number the OBJ reader makes of it. An error names the statement by
-/// its OBJ index (from 1, as faces count) and its line.
+/// Checks the numbers of the OBJ's statements before parsing: `v`, `vn` and `vt` values as the
+/// single-precision numbers the OBJ reader makes of them (positions finite and within
+/// [`limits::MAX_COORDINATE`], normals and texture coordinates finite), and the indices of `f`
+/// and `l` statements (not 0; positive ones at most the file's count of that kind, negative
+/// ones at most the count before the statement). tobj 4 multiplies unchecked indices and
+/// overflows on `f 1/1/-9` after one normal or on an index of 2⁶³. An error names the
+/// statement by its OBJ index (from 1, as faces count) or its kind, and its line.
 fn check_obj_values(bytes: &[u8]) -> Result<(), String> {
+    const KINDS: [&str; 3] = ["v", "vt", "vn"];
     let text = String::from_utf8_lossy(bytes);
+    let kind_of = |word: Option<&str>| KINDS.iter().position(|k| Some(*k) == word);
+    let mut totals = [0usize; 3];
+    for line in text.lines() {
+        if let Some(kind) = kind_of(line.split_whitespace().next()) {
+            totals[kind] += 1;
+        }
+    }
     let mut counts = [0usize; 3];
     for (line_index, line) in text.lines().enumerate() {
+        let line_number = line_index + 1;
         let mut words = line.split_whitespace();
-        let (kind, what, limit) = match words.next() {
-            Some("v") => (0, "position", limits::MAX_COORDINATE),
-            Some("vn") => (1, "normal", f64::INFINITY),
-            Some("vt") => (2, "texture coordinate", f64::INFINITY),
-            _ => continue,
+        let first = words.next();
+        if matches!(first, Some("f" | "l")) {
+            for corner in words {
+                for (kind, index) in corner.split('/').enumerate().take(3) {
+                    // Words that are not numbers are the OBJ reader's error to report.
+                    let Ok(index) = index.parse::<i64>() else {
+                        continue;
+                    };
+                    let fits = match index {
+                        0 => false,
+                        i if i > 0 => i.unsigned_abs() <= totals[kind] as u64,
+                        i => i.unsigned_abs() <= counts[kind] as u64,
+                    };
+                    if !fits {
+                        return Err(format!(
+                            "{} (line {line_number}): index {index} refers to no `{}` ({} in the file, {} before this line)",
+                            first.unwrap_or_default(),
+                            KINDS[kind],
+                            totals[kind],
+                            counts[kind]
+                        ));
+                    }
+                }
+            }
+            continue;
+        }
+        let Some(kind) = kind_of(first) else {
+            continue;
         };
         counts[kind] += 1;
-        let statement = ["v", "vn", "vt"][kind];
-        let take = if kind == 2 { 2 } else { 3 };
+        let (what, limit, take) = match kind {
+            0 => ("position", limits::MAX_COORDINATE, 3),
+            1 => ("texture coordinate", f64::INFINITY, 2),
+            _ => ("normal", f64::INFINITY, 3),
+        };
         for word in words.take(take) {
-            // Words that are not numbers are the OBJ reader's error to report.
             let Ok(value) = word.parse::<f64>() else {
                 continue;
             };
@@ -40,9 +77,9 @@ fn check_obj_values(bytes: &[u8]) -> Result<(), String> {
                     String::new()
                 };
                 return Err(format!(
-                    "{statement} {} (line {}): the {what} component {} must be finite{bound}",
+                    "{} {} (line {line_number}): the {what} component {} must be finite{bound}",
+                    KINDS[kind],
                     counts[kind],
-                    line_index + 1,
                     limits::echo(word),
                 ));
             }
@@ -387,6 +424,25 @@ mod tests {
             let message = error.to_string();
             assert!(message.contains("bad.obj"), "{message}");
             assert!(message.contains(words), "{to}: `{message}` lacks `{words}`");
+        }
+        // Face indices tobj would overflow on, and 0, are errors naming the line.
+        for (face, words) in [
+            ("f 1/1/-9 2/2/2 3/3/3", "index -9 refers to no `vn`"),
+            (
+                "f 1/1/1 2/9223372036854775807/2 3/3/3",
+                "index 9223372036854775807",
+            ),
+            ("f 0 2 3", "index 0"),
+            ("f 1 2 4", "index 4 refers to no `v` (3 in the file"),
+        ] {
+            let text = good.replacen("f 1/1/1 2/2/2 3/3/3", face, 1);
+            let message = Mesh::from_obj_bytes(text.as_bytes(), Path::new("f.obj"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                message.contains("f (line 10)") && message.contains(words),
+                "{message}"
+            );
         }
         // A material library is never opened (here a device that would never end).
         let with_library = format!("mtllib /dev/zero\n{good}");
