@@ -10,6 +10,7 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::limits::{number, vector};
 use crate::shape::{Ray, SurfaceHit};
 
 /// Where the camera is and what it looks at.
@@ -151,13 +152,15 @@ pub fn pose_problem(pose: &CameraPose) -> Option<String> {
     if !(pose.position.is_finite() && pose.look_at.is_finite() && pose.up.is_finite()) {
         return Some(format!(
             "position {}, look_at {} and up {} must be finite",
-            pose.position, pose.look_at, pose.up
+            vector(pose.position),
+            vector(pose.look_at),
+            vector(pose.up)
         ));
     }
     if !(pose.fov_degrees > 0.0 && pose.fov_degrees < 180.0) {
         return Some(format!(
             "the field of view {}° is outside (0°, 180°)",
-            pose.fov_degrees
+            number(pose.fov_degrees)
         ));
     }
     let forward = pose.look_at - pose.position;
@@ -166,14 +169,15 @@ pub fn pose_problem(pose: &CameraPose) -> Option<String> {
     if !(distance > 1e-9 * magnitude && distance > 0.0) {
         return Some(format!(
             "the eye {} is at the look-at point {}",
-            pose.position, pose.look_at
+            vector(pose.position),
+            vector(pose.look_at)
         ));
     }
     if !(pose.up.abs().max_element() > 0.0 && unit(forward).cross(unit(pose.up)).length() > 1e-6) {
         return Some(format!(
             "up {} is zero or along the view direction {}",
-            pose.up,
-            unit(forward)
+            vector(pose.up),
+            vector(unit(forward))
         ));
     }
     None

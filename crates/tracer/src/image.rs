@@ -383,7 +383,7 @@ impl RgbImage {
                     "pixel ({}, {}) is {}: not a finite 32-bit float",
                     i % self.width.max(1),
                     i / self.width.max(1),
-                    self.pixels[i]
+                    limits::vector(self.pixels[i])
                 ),
             });
         }

@@ -109,6 +109,23 @@ pub const MAX_SCENE_ASSET_BYTES: u64 = 1 << 30;
 /// characters; longer ones are cut with a note of their length.
 pub const MAX_ECHO_CHARS: usize = 200;
 
+/// A number for a message: as written between 10⁻⁴ and 10⁶, in scientific notation beyond (so
+/// that 10³⁰⁰ is `1e300`, not 301 digits).
+#[must_use]
+pub fn number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// A vector for a message, its components as [`number`] writes them.
+#[must_use]
+pub fn vector(v: glam::DVec3) -> String {
+    format!("[{}, {}, {}]", number(v.x), number(v.y), number(v.z))
+}
+
 /// `text` for quoting in an error: at most [`MAX_ECHO_CHARS`] characters, cut with a note of
 /// the full length when longer.
 #[must_use]
@@ -177,6 +194,11 @@ mod tests {
     #[test]
     fn echoes_are_bounded() {
         assert_eq!(echo("short"), "short");
+        assert_eq!(number(1e300), "1e300");
+        assert_eq!(number(-2.5e-300), "-2.5e-300");
+        assert_eq!(number(0.25), "0.25");
+        assert_eq!(number(f64::NAN), "NaN");
+        assert_eq!(vector(glam::DVec3::new(1e15, 1.0, 0.0)), "[1e15, 1, 0]");
         let long = "é".repeat(100_000);
         let cut = echo(&long);
         assert!(cut.chars().count() < MAX_ECHO_CHARS + 40, "{}", cut.len());

@@ -206,7 +206,7 @@ impl Mesh {
         {
             return Err(format!(
                 "vertex {i} at {} is not finite or beyond the coordinate limit {:e}",
-                self.positions[i],
+                limits::vector(self.positions[i]),
                 limits::MAX_COORDINATE
             ));
         }

@@ -408,13 +408,9 @@ struct EnvironmentSection {
     rotation: Option<f64>,
 }
 
-/// A limit for an error message: 1, 0.5 and 256 as such, 10¹⁵ as `1e15`.
+/// A number for an error message (see [`limits::number`]).
 fn shown(x: f64) -> String {
-    if (1e-3..1e5).contains(&x.abs()) || x == 0.0 {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
+    limits::number(x)
 }
 
 /// `name` and up to nine more of `names`, quoted and bounded, for an error message.
@@ -533,7 +529,8 @@ impl Builder<'_> {
             self.fail(
                 field,
                 format!(
-                    "{v}: coordinates must be finite and within ±{:e}",
+                    "{}: coordinates must be finite and within ±{:e}",
+                    limits::vector(v),
                     limits::MAX_COORDINATE
                 ),
             )
@@ -545,7 +542,7 @@ impl Builder<'_> {
     fn direction(&self, field: &str, v: [f64; 3]) -> Checked<DVec3> {
         let v = DVec3::from_array(v);
         if !v.is_finite() {
-            return self.fail(field, format!("{v} is not finite"));
+            return self.fail(field, format!("{} is not finite", limits::vector(v)));
         }
         let largest = v.abs().max_element();
         if largest > 0.0 {
@@ -559,7 +556,10 @@ impl Builder<'_> {
         if x > 0.0 && x.is_finite() {
             Ok(x)
         } else {
-            self.fail(field, format!("must be positive and finite, got {x}"))
+            self.fail(
+                field,
+                format!("must be positive and finite, got {}", shown(x)),
+            )
         }
     }
 
@@ -571,9 +571,10 @@ impl Builder<'_> {
             self.fail(
                 field,
                 format!(
-                    "must be in [{}, {}], got {x}",
+                    "must be in [{}, {}], got {}",
                     shown(lowest),
-                    shown(highest)
+                    shown(highest),
+                    shown(x)
                 ),
             )
         }
@@ -588,8 +589,9 @@ impl Builder<'_> {
             self.fail(
                 field,
                 format!(
-                    "{what} components must be in [0, {}], got {c}",
-                    shown(highest)
+                    "{what} components must be in [0, {}], got {}",
+                    shown(highest),
+                    limits::vector(c)
                 ),
             )
         }
@@ -613,8 +615,9 @@ impl Builder<'_> {
             self.fail(
                 field,
                 format!(
-                    "{what} must be in [0, {:e}] per channel, got {c}",
-                    limits::MAX_EMISSION
+                    "{what} must be in [0, {:e}] per channel, got {}",
+                    limits::MAX_EMISSION,
+                    limits::vector(c)
                 ),
             )
         }
@@ -680,7 +683,11 @@ impl Builder<'_> {
                 if !(scale.is_finite() && scale.min_element() > 0.0) {
                     return self.fail(
                         format!("{field}.texture_scale"),
-                        format!("must be positive, got {scale}"),
+                        format!(
+                            "must be positive, got [{}, {}]",
+                            shown(scale.x),
+                            shown(scale.y)
+                        ),
                     );
                 }
                 let tint = match colour {
@@ -692,7 +699,8 @@ impl Builder<'_> {
                     return self.fail(
                         format!("{field}.texture"),
                         format!(
-                            "an albedo of {brightest} (texel times colour): albedos must be at most {}",
+                            "an albedo of {} (texel times colour): albedos must be at most {}",
+                            shown(brightest),
                             limits::MAX_ALBEDO
                         ),
                     );
@@ -843,7 +851,11 @@ impl Builder<'_> {
                     if !(0.0..=limits::MAX_MIX_WEIGHT).contains(&weight) {
                         return self.fail(
                             format!("{component}.weight"),
-                            format!("must be in [0, {}], got {weight}", limits::MAX_MIX_WEIGHT),
+                            format!(
+                                "must be in [0, {}], got {}",
+                                limits::MAX_MIX_WEIGHT,
+                                shown(weight)
+                            ),
                         );
                     }
                     let used_at = format!("{component}.material");
@@ -867,14 +879,20 @@ impl Builder<'_> {
         if !(g.particles >= 1.0 && g.particles <= 1e18 && g.particles.fract() == 0.0) {
             return self.fail(
                 format!("{field}.particles"),
-                format!("must be a whole number in [1, 10¹⁸], got {}", g.particles),
+                format!(
+                    "must be a whole number in [1, 10¹⁸], got {}",
+                    shown(g.particles)
+                ),
             );
         }
         parameters.particles = g.particles as u64;
         if !(g.gamma > 0.0 && g.gamma <= 60.0) {
             return self.fail(
                 format!("{field}.gamma"),
-                format!("the cone radius must be in (0°, 60°], got {}°", g.gamma),
+                format!(
+                    "the cone radius must be in (0°, 60°], got {}°",
+                    shown(g.gamma)
+                ),
             );
         }
         parameters.gamma = g.gamma.to_radians();
@@ -914,7 +932,10 @@ impl Builder<'_> {
         if !(negligible_count >= 0.0 && negligible_count.is_finite()) {
             return self.fail(
                 format!("{field}.negligible_count"),
-                format!("must be finite and ≥ 0 (0 traverses every query), got {negligible_count}"),
+                format!(
+                    "must be finite and ≥ 0 (0 traverses every query), got {}",
+                    shown(negligible_count)
+                ),
             );
         }
         parameters.negligible_count = negligible_count;
@@ -938,8 +959,9 @@ impl Builder<'_> {
             return self.fail(
                 format!("{field}.scale"),
                 format!(
-                    "must be non-zero and within ±{:e}, got {scale}",
-                    limits::MAX_COORDINATE
+                    "must be non-zero and within ±{:e}, got {}",
+                    limits::MAX_COORDINATE,
+                    limits::vector(scale)
                 ),
             );
         }
@@ -1015,7 +1037,9 @@ impl Builder<'_> {
                     self.fail(
                         power_field,
                         format!(
-                            "{p} W gives a radiance of {radiance}, above the limit {:e}: lower the power or enlarge the light",
+                            "{} W gives a radiance of {}, above the limit {:e}: lower the power or enlarge the light",
+                            limits::vector(p),
+                            limits::vector(radiance),
                             limits::MAX_EMISSION
                         ),
                     )
@@ -1142,20 +1166,20 @@ impl Builder<'_> {
             if !(b.threshold >= 0.0 && b.threshold.is_finite()) {
                 return self.fail(
                     "render.bloom.threshold",
-                    format!("must be finite and ≥ 0, got {}", b.threshold),
+                    format!("must be finite and ≥ 0, got {}", shown(b.threshold)),
                 );
             }
             let radius = self.positive("render.bloom.radius", b.radius)?;
             if !(radius <= 256.0) {
                 return self.fail(
                     "render.bloom.radius",
-                    format!("at most 256 pixels, got {radius}"),
+                    format!("at most 256 pixels, got {}", shown(radius)),
                 );
             }
             if !(b.strength >= 0.0 && b.strength.is_finite()) {
                 return self.fail(
                     "render.bloom.strength",
-                    format!("must be finite and ≥ 0, got {}", b.strength),
+                    format!("must be finite and ≥ 0, got {}", shown(b.strength)),
                 );
             }
             s.bloom = Some(Bloom {
