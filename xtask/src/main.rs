@@ -2,7 +2,8 @@
 //!
 //! - `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--out DIR] [--frames A..B]
 //!   [--smooth] [--threads N]`: renders a scene (default: `scenes/sphere_lights.toml`) to EXR,
-//!   PNG and JSON statistics under `target/render/`.
+//!   PNG and JSON statistics under `target/render/`; `--frames` takes at most 100000 frames,
+//!   checks the camera at each before rendering any, and iterates them one by one.
 //! - `cargo xtask scenes [--quick] [--only NAME] [--update-previews]`: every scene with glints
 //!   and smooth, side by side, a coherent vs per-frame animation, and the Table 1 reproduction
 //!   under `target/scenes/`.

@@ -34,7 +34,8 @@ pub(crate) struct RenderArgs {
     /// Output folder.
     #[arg(long, default_value = "target/render")]
     pub(crate) out: PathBuf,
-    /// Render camera frames A..B (inclusive), one image each.
+    /// Render camera frames A..B (inclusive), one image each: at most 100000 frames, numbered
+    /// within ±2^53.
     #[arg(long, value_parser = parse_frames)]
     pub(crate) frames: Option<(i64, i64)>,
     /// Replace every glint material by its smooth limit (the paper's Fig. 3 comparisons).
@@ -77,6 +78,13 @@ fn parse_integrator(text: &str) -> Result<glint_tracer::IntegratorKind, String> 
     }
 }
 
+/// The most frames one `--frames` range renders (about a day of rendering at a second a frame; a
+/// longer animation is split into ranges). The range is iterated, never collected.
+pub(crate) const MAX_FRAMES: i64 = 100_000;
+
+/// The largest frame number: frames are passed to the camera as doubles, exact to 2⁵³.
+const MAX_FRAME_NUMBER: i64 = 1 << 53;
+
 fn parse_frames(text: &str) -> Result<(i64, i64), String> {
     let (a, b) = text
         .split_once("..")
@@ -90,7 +98,45 @@ fn parse_frames(text: &str) -> Result<(i64, i64), String> {
     if b < a {
         return Err(format!("`{text}`: the last frame comes before the first"));
     }
+    if a.unsigned_abs() > MAX_FRAME_NUMBER.unsigned_abs()
+        || b.unsigned_abs() > MAX_FRAME_NUMBER.unsigned_abs()
+    {
+        return Err(format!(
+            "`{text}`: frame numbers must be within ±{MAX_FRAME_NUMBER} (2^53)"
+        ));
+    }
+    let count = i128::from(b) - i128::from(a) + 1;
+    if count > i128::from(MAX_FRAMES) {
+        return Err(format!(
+            "`{text}`: {count} frames, more than the limit of {MAX_FRAMES} per command (split the range)"
+        ));
+    }
     Ok((a, b))
+}
+
+/// The frames to render: `--frames A..B`, else frame 0. An iterator, never a collection.
+fn frame_range(frames: Option<(i64, i64)>) -> std::ops::RangeInclusive<i64> {
+    match frames {
+        Some((a, b)) => a..=b,
+        None => 0..=0,
+    }
+}
+
+/// Checks the camera at every frame of `frames` before any is rendered: keyframes valid alone
+/// may interpolate to a degenerate pose between them (`render` checks each frame again).
+fn check_camera(
+    scene: &glint_tracer::Scene,
+    frames: std::ops::RangeInclusive<i64>,
+) -> Result<(), glint_tracer::TracerError> {
+    for frame in frames {
+        scene.camera.checked_pose(frame as f64).map_err(|problem| {
+            glint_tracer::TracerError::Camera {
+                frame: frame as f64,
+                problem,
+            }
+        })?;
+    }
+    Ok(())
 }
 
 /// The statistics as one JSON object.
@@ -119,6 +165,8 @@ pub(crate) fn statistics_json(
         "overlapping_nodes_per_query": s.glint.overlapping_nodes_per_query(),
         "particles_per_query": s.particles_per_query(),
         "queries_per_second": s.queries_per_second(),
+        "clamped_samples": s.clamped_samples,
+        "discarded_samples": s.discarded_samples,
         "materials": s.glint_by_material.iter().map(|(name, c)| serde_json::json!({
             "name": name,
             "glint_queries": c.queries,
@@ -183,10 +231,7 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     } else {
         stem
     };
-    let frames: Vec<i64> = match args.frames {
-        Some((a, b)) => (a..=b).collect(),
-        None => vec![0],
-    };
+    check_camera(&scene, frame_range(args.frames))?;
     println!(
         "{}: {}x{}, {} spp, {} thread(s){}; scene built in {:.2} s",
         scene_path.display(),
@@ -197,7 +242,7 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         if args.smooth { ", smooth" } else { "" },
         build_seconds
     );
-    for &frame in &frames {
+    for frame in frame_range(args.frames) {
         if settings.glint_randomness == glint_tracer::GlintRandomness::PerFrame {
             scene.reseed_glints_for_frame(&base_materials, frame)?;
         }
@@ -236,6 +281,14 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")
             .with_context(|| format!("cannot write {}", json.display()))?;
         println!("frame {frame}: {s} → {}", png.display());
+        if s.clamped_samples > 0 || s.discarded_samples > 0 {
+            eprintln!(
+                "warning: frame {frame}: {} samples above {:e} were clamped and {} non-finite samples discarded (extreme light or material values; see scenes/README.md, Limits)",
+                s.clamped_samples,
+                glint_tracer::limits::MAX_SAMPLE_RADIANCE,
+                s.discarded_samples
+            );
+        }
         if s.glint_by_material.len() > 1 {
             for (material, c) in &s.glint_by_material {
                 println!(
@@ -249,4 +302,72 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frame ranges are bounded before anything is rendered or allocated: the range that
+    /// aborted allocating 8 GB and the widest ones (which overflowed the capacity) are
+    /// errors, the largest allowed range is accepted, and ranges are iterated, not collected.
+    #[test]
+    fn frame_ranges_are_bounded_and_iterated() {
+        assert_eq!(parse_frames("0..23"), Ok((0, 23)));
+        assert_eq!(parse_frames("3..=3"), Ok((3, 3)));
+        assert_eq!(parse_frames("-5..99994"), Ok((-5, 99_994)));
+        for (text, words) in [
+            ("0..1000000000", "more than the limit of 100000"),
+            ("0..100000", "100001 frames"),
+            ("-9223372036854775808..9223372036854775807", "within ±"),
+            ("9007199254740993..9007199254740994", "within ±"),
+            ("5..3", "before the first"),
+            ("0..x", "x"),
+        ] {
+            let error = parse_frames(text).unwrap_err();
+            assert!(error.contains(words), "{text}: {error}");
+        }
+        let range = frame_range(Some((-5, 99_994)));
+        assert_eq!(
+            std::mem::size_of_val(&range),
+            std::mem::size_of::<(i64, i64, bool)>()
+        );
+        assert_eq!(range.clone().count(), 100_000);
+        assert_eq!(frame_range(None).collect::<Vec<_>>(), [0]);
+    }
+
+    /// A range whose frames include a degenerate interpolated pose is refused before any frame
+    /// is rendered, naming the frame.
+    #[test]
+    fn the_camera_is_checked_at_every_frame_first() {
+        let scene = glint_tracer::scene_file::parse_scene(
+            r#"
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+[[camera.keyframes]]
+frame = 0
+[[camera.keyframes]]
+frame = 10
+position = [0, 0, -5]
+[materials.grey]
+type = "diffuse"
+[[shapes]]
+type = "sphere"
+center = [0, -2, 0]
+radius = 1
+material = "grey"
+[[lights]]
+type = "directional"
+direction = [0, 1, 0]
+irradiance = 1
+"#,
+            Path::new("passing.toml"),
+        )
+        .unwrap();
+        assert!(check_camera(&scene, 0..=4).is_ok());
+        assert!(check_camera(&scene, 6..=99_999).is_ok());
+        let error = check_camera(&scene, 0..=23).unwrap_err().to_string();
+        assert!(error.contains("frame 5"), "{error}");
+    }
 }

@@ -10,6 +10,7 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::limits::{number, vector};
 use crate::shape::{Ray, SurfaceHit};
 
 /// Where the camera is and what it looks at.
@@ -108,30 +109,110 @@ impl Camera {
         }
     }
 
-    /// The view at `frame` for an image of `width` × `height` pixels.
+    /// The view at `frame` for an image of `width` × `height` pixels (not checked: see
+    /// [`Camera::checked_view`]).
     #[must_use]
     pub fn view(&self, frame: f64, width: u32, height: u32) -> CameraView {
         CameraView::new(&self.pose_at(frame), width, height)
     }
+
+    /// The pose at `frame`, checked: keyframes valid alone may interpolate to a degenerate pose
+    /// between them (up turning through the view direction, the eye passing through the look-at
+    /// point), which would render a black frame.
+    ///
+    /// # Errors
+    /// What is wrong with the pose (see [`pose_problem`]), or a frame that is not finite.
+    pub fn checked_pose(&self, frame: f64) -> Result<CameraPose, String> {
+        if !frame.is_finite() {
+            return Err(format!("the frame number {frame} is not finite"));
+        }
+        let pose = self.pose_at(frame);
+        match pose_problem(&pose) {
+            None => Ok(pose),
+            Some(problem) => Err(format!("degenerate pose: {problem}")),
+        }
+    }
+
+    /// The view at `frame` for an image of `width` × `height` pixels, checked as
+    /// [`Camera::checked_pose`] does.
+    ///
+    /// # Errors
+    /// As [`Camera::checked_pose`].
+    pub fn checked_view(&self, frame: f64, width: u32, height: u32) -> Result<CameraView, String> {
+        Ok(CameraView::new(&self.checked_pose(frame)?, width, height))
+    }
+}
+
+/// What makes `pose` unable to form an image, if anything: coordinates not finite, the eye at
+/// the look-at point (closer than 10⁻⁹ of their magnitude, where rounding decides the view
+/// direction), up within 10⁻⁶ radians of the view direction, or a field of view outside
+/// (0°, 180°).
+#[must_use]
+pub fn pose_problem(pose: &CameraPose) -> Option<String> {
+    if !(pose.position.is_finite() && pose.look_at.is_finite() && pose.up.is_finite()) {
+        return Some(format!(
+            "position {}, look_at {} and up {} must be finite",
+            vector(pose.position),
+            vector(pose.look_at),
+            vector(pose.up)
+        ));
+    }
+    if !(pose.fov_degrees > 0.0 && pose.fov_degrees < 180.0) {
+        return Some(format!(
+            "the field of view {}° is outside (0°, 180°)",
+            number(pose.fov_degrees)
+        ));
+    }
+    let forward = pose.look_at - pose.position;
+    let magnitude = pose.position.abs().max(pose.look_at.abs()).max_element();
+    let distance = forward.abs().max_element();
+    if !(distance > 1e-9 * magnitude && distance > 0.0) {
+        return Some(format!(
+            "the eye {} is at the look-at point {}",
+            vector(pose.position),
+            vector(pose.look_at)
+        ));
+    }
+    if !(pose.up.abs().max_element() > 0.0 && unit(forward).cross(unit(pose.up)).length() > 1e-6) {
+        return Some(format!(
+            "up {} is zero or along the view direction {}",
+            vector(pose.up),
+            vector(unit(forward))
+        ));
+    }
+    None
+}
+
+/// `v` normalized, also where its squared length would underflow or overflow (then scaled to a
+/// largest component of 1 first; the zero vector gives NaN).
+fn unit(v: DVec3) -> DVec3 {
+    if v.length_squared().is_normal() {
+        v.normalize()
+    } else {
+        (v / v.abs().max_element()).normalize()
+    }
+}
+
+/// `up` scaled to a largest component of 1 when its squared length is not a normal double
+/// (else unchanged, as the cross product with it is normalized anyway).
+fn unit_or_self(up: DVec3) -> DVec3 {
+    if up.length_squared().is_normal() {
+        up
+    } else {
+        up / up.abs().max_element()
+    }
 }
 
 fn pose_is_valid(pose: &CameraPose) -> bool {
-    let forward = pose.look_at - pose.position;
-    pose.position.is_finite()
-        && pose.look_at.is_finite()
-        && pose.up.is_finite()
-        && forward.length_squared() > 0.0
-        && forward.normalize().cross(pose.up).length_squared() > 1e-12 * pose.up.length_squared()
-        && pose.fov_degrees > 0.0
-        && pose.fov_degrees < 180.0
+    pose_problem(pose).is_none()
 }
 
 impl CameraView {
     /// The view of `pose` for `width` × `height` pixels.
     #[must_use]
     pub fn new(pose: &CameraPose, width: u32, height: u32) -> Self {
-        let forward = (pose.look_at - pose.position).normalize();
-        let right = forward.cross(pose.up).normalize();
+        let forward = unit(pose.look_at - pose.position);
+        let right = unit(forward.cross(unit_or_self(pose.up)));
         let up = right.cross(forward);
         let half_height = (0.5 * pose.fov_degrees.to_radians()).tan();
         let aspect = f64::from(width) / f64::from(height);
@@ -276,6 +357,51 @@ mod tests {
             .is_none()
         );
         assert!(Camera::new(vec![]).is_none());
+    }
+
+    /// Keyframes each valid alone whose interpolated pose is degenerate at a frame between
+    /// them: up turning through the view direction, the eye passing through the look-at
+    /// point. The checked pose at that frame is an error saying why; frames beside it are not.
+    #[test]
+    fn interpolated_poses_are_checked_per_frame() {
+        let key = |frame: f64, position: DVec3, up: DVec3| Keyframe {
+            frame,
+            pose: CameraPose {
+                position,
+                look_at: DVec3::ZERO,
+                up,
+                fov_degrees: 40.0,
+            },
+        };
+        let eye = DVec3::new(0.0, 0.0, 5.0);
+        // Looking along −z, up turns from (0, 1, −1) to (0, −1, −1): (0, 0, −1) at frame 5.
+        let flip = Camera::new(vec![
+            key(0.0, eye, DVec3::new(0.0, 1.0, -1.0)),
+            key(10.0, eye, DVec3::new(0.0, -1.0, -1.0)),
+        ])
+        .unwrap();
+        let problem = flip.checked_pose(5.0).unwrap_err();
+        assert!(problem.contains("along the view direction"), "{problem}");
+        assert!(flip.checked_pose(4.0).is_ok() && flip.checked_pose(6.0).is_ok());
+        // Up turns from +y to −y through zero.
+        let through_zero =
+            Camera::new(vec![key(0.0, eye, DVec3::Y), key(10.0, eye, -DVec3::Y)]).unwrap();
+        assert!(through_zero.checked_pose(5.0).is_err());
+        // The eye moves from +z to −z through the look-at point at frame 5.
+        let through =
+            Camera::new(vec![key(0.0, eye, DVec3::Y), key(10.0, -eye, DVec3::Y)]).unwrap();
+        let problem = through.checked_pose(5.0).unwrap_err();
+        assert!(problem.contains("at the look-at point"), "{problem}");
+        assert!(through.checked_pose(4.0).is_ok());
+        assert!(through.checked_pose(f64::NAN).is_err());
+        // Poses of any scale are checked without overflow: tiny and huge up vectors are fine.
+        let mut tiny = pose();
+        tiny.up = DVec3::new(0.0, 1e-300, 0.0);
+        assert_eq!(pose_problem(&tiny), None);
+        tiny.up = DVec3::new(0.0, 1e300, 0.0);
+        assert_eq!(pose_problem(&tiny), None);
+        let view = CameraView::new(&tiny, 4, 4);
+        assert!(view.ray(DVec2::new(1.0, 1.0)).direction.is_finite());
     }
 
     type Tracer<'a> = dyn Fn(&Ray) -> Option<SurfaceHit> + 'a;

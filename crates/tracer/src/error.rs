@@ -1,7 +1,16 @@
-//! The tracer's errors: each names the file, the field or asset, and the problem.
+//! The tracer's errors: each names the file, the field or asset, and the problem. Input they
+//! quote (names, paths, lines of a file) is cut to [`crate::limits::MAX_ECHO_CHARS`] characters
+//! when displayed.
 
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+use crate::limits::{echo, echo_lines};
+
+/// A path for an error message, bounded.
+fn shown(path: &Path) -> String {
+    echo(&path.display().to_string())
+}
 
 /// What went wrong loading a scene or writing an image.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,6 +39,14 @@ pub enum TracerError {
         /// What went wrong.
         problem: String,
     },
+    /// The camera cannot form an image at a frame: the pose interpolated between keyframes is
+    /// degenerate (the eye at the look-at point, up along the view direction).
+    Camera {
+        /// The frame.
+        frame: f64,
+        /// What is wrong with the pose.
+        problem: String,
+    },
     /// Render settings out of range (resolution, samples per pixel, depth).
     Settings {
         /// The setting at fault.
@@ -47,17 +64,25 @@ impl fmt::Display for TracerError {
                 field,
                 problem,
             } => {
+                let (file, problem) = (shown(file), echo_lines(problem));
                 if field.is_empty() {
-                    write!(f, "{}: {problem}", file.display())
+                    write!(f, "{file}: {problem}")
                 } else {
-                    write!(f, "{}: {field}: {problem}", file.display())
+                    write!(f, "{file}: {}: {problem}", echo(field))
                 }
             }
-            Self::Asset { path, problem } => write!(f, "asset {}: {problem}", path.display()),
-            Self::Output { path, problem } => {
-                write!(f, "cannot write {}: {problem}", path.display())
+            Self::Asset { path, problem } => {
+                write!(f, "asset {}: {}", shown(path), echo_lines(problem))
             }
-            Self::Settings { setting, problem } => write!(f, "render setting {setting}: {problem}"),
+            Self::Output { path, problem } => {
+                write!(f, "cannot write {}: {}", shown(path), echo_lines(problem))
+            }
+            Self::Camera { frame, problem } => {
+                write!(f, "camera at frame {frame}: {}", echo_lines(problem))
+            }
+            Self::Settings { setting, problem } => {
+                write!(f, "render setting {setting}: {}", echo_lines(problem))
+            }
         }
     }
 }

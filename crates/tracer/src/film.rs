@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use crate::error::TracerError;
 use crate::image::RgbImage;
 use crate::integrator::{PathState, RenderSettings, filter_offset, radiance};
+use crate::limits::MAX_SAMPLE_RADIANCE;
 use crate::material::GlintCounters;
 use crate::sampler::{MAX_SAMPLES_PER_PIXEL, PixelSampler};
 use crate::scene::Scene;
@@ -29,6 +30,12 @@ pub struct RenderStatistics {
     pub rays: u64,
     /// Camera samples taken.
     pub samples: u64,
+    /// Samples whose radiance exceeded [`MAX_SAMPLE_RADIANCE`] in some channel and were
+    /// clamped to it (extreme light values or estimator gains; the image is then biased there).
+    pub clamped_samples: u64,
+    /// Samples whose radiance was not finite (an overflow or 0·∞ on the path) and were
+    /// discarded: they count as black in their pixel's mean.
+    pub discarded_samples: u64,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -74,8 +81,30 @@ impl std::fmt::Display for RenderStatistics {
             self.glint.overlapping_nodes_per_query(),
             self.particles_per_query(),
             self.queries_per_second()
-        )
+        )?;
+        if self.clamped_samples > 0 || self.discarded_samples > 0 {
+            write!(
+                f,
+                "; {} samples clamped to {MAX_SAMPLE_RADIANCE:e}, {} non-finite samples discarded",
+                self.clamped_samples, self.discarded_samples
+            )?;
+        }
+        Ok(())
     }
+}
+
+/// A sample's radiance as the film takes it: NaN or infinite channels discard the sample (black,
+/// counted in `discarded`), channels above [`MAX_SAMPLE_RADIANCE`] are clamped to it (counted in
+/// `clamped`), negative ones (never produced by the materials here) become 0.
+fn admit(radiance: DVec3, clamped: &mut u64, discarded: &mut u64) -> DVec3 {
+    if !radiance.is_finite() {
+        *discarded += 1;
+        return DVec3::ZERO;
+    }
+    if radiance.max_element() > MAX_SAMPLE_RADIANCE {
+        *clamped += 1;
+    }
+    radiance.clamp(DVec3::ZERO, DVec3::splat(MAX_SAMPLE_RADIANCE))
 }
 
 /// A rendered image with its statistics.
@@ -134,9 +163,12 @@ pub fn validate_settings(settings: &RenderSettings) -> Result<(), TracerError> {
 }
 
 /// Renders `scene` at camera frame `frame`; `progress(done, total)` is called as tiles finish.
+/// Every pixel is finite, non-negative and at most [`MAX_SAMPLE_RADIANCE`]: samples beyond are
+/// clamped or discarded and counted in the statistics.
 ///
 /// # Errors
-/// [`TracerError::Settings`] for settings out of range.
+/// [`TracerError::Settings`] for settings out of range, [`TracerError::Camera`] when the
+/// camera's pose at `frame` is degenerate.
 pub fn render(
     scene: &Scene,
     settings: &RenderSettings,
@@ -146,7 +178,10 @@ pub fn render(
     validate_settings(settings)?;
     let start = Instant::now();
     let (width, height) = (settings.width, settings.height);
-    let view = scene.camera.view(frame, width, height);
+    let view = scene
+        .camera
+        .checked_view(frame, width, height)
+        .map_err(|problem| TracerError::Camera { frame, problem })?;
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
     let total = u64::from(tiles_x * tiles_y);
@@ -166,7 +201,12 @@ pub fn render(
                         let offset = filter_offset(settings.filter, sampler.next_2d());
                         let film = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5) + offset;
                         let ray = view.ray_differential(film, settings.footprint_scale);
-                        sum += radiance(scene, settings, &ray, &mut sampler, &mut state);
+                        let sample = radiance(scene, settings, &ray, &mut sampler, &mut state);
+                        sum += admit(
+                            sample,
+                            &mut state.clamped_samples,
+                            &mut state.discarded_samples,
+                        );
                     }
                     pixels.push(sum / f64::from(settings.samples_per_pixel));
                 }
@@ -191,6 +231,8 @@ pub fn render(
             by_material[m].add(counters);
         }
         statistics.rays += state.rays;
+        statistics.clamped_samples += state.clamped_samples;
+        statistics.discarded_samples += state.discarded_samples;
     }
     for (m, counters) in by_material.into_iter().enumerate() {
         statistics.glint.add(&counters);
@@ -450,6 +492,78 @@ power = 20
             unreachable!("two materials")
         };
         assert!(dense.nodes_per_query() > sparse.nodes_per_query() + 4.0);
+    }
+
+    /// The film takes every sample's radiance explicitly: non-finite ones are discarded and
+    /// counted, those above the cap clamped to it and counted, so that a pixel is always
+    /// finite and at most MAX_SAMPLE_RADIANCE.
+    #[test]
+    fn samples_beyond_the_film_range_are_counted() {
+        let (mut clamped, mut discarded) = (0, 0);
+        let cases = [
+            (DVec3::new(0.5, 1.0, 2.0), DVec3::new(0.5, 1.0, 2.0)),
+            (
+                DVec3::new(1e300, 0.5, 0.0),
+                DVec3::new(MAX_SAMPLE_RADIANCE, 0.5, 0.0),
+            ),
+            (DVec3::new(f64::INFINITY, 0.5, 0.0), DVec3::ZERO),
+            (DVec3::new(f64::NAN, 0.5, 0.0), DVec3::ZERO),
+            (DVec3::new(-1.0, 0.5, 0.0), DVec3::new(0.0, 0.5, 0.0)),
+        ];
+        for (sample, expected) in cases {
+            assert_eq!(admit(sample, &mut clamped, &mut discarded), expected);
+        }
+        assert_eq!((clamped, discarded), (1, 2));
+        let statistics = RenderStatistics {
+            clamped_samples: 1,
+            discarded_samples: 2,
+            ..RenderStatistics::default()
+        };
+        let line = statistics.to_string();
+        assert!(
+            line.contains("1 samples clamped") && line.contains("2 non-finite"),
+            "{line}"
+        );
+    }
+
+    /// A frame whose interpolated camera pose is degenerate is an error naming the frame, not
+    /// a black image; the frames around it render.
+    #[test]
+    fn degenerate_frames_are_errors_naming_the_frame() {
+        let s = scene(
+            r#"
+[render]
+resolution = [8, 6]
+spp = 1
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+[[camera.keyframes]]
+frame = 0
+[[camera.keyframes]]
+frame = 10
+position = [0, 0, -5]
+[materials.grey]
+type = "diffuse"
+[[shapes]]
+type = "sphere"
+center = [0, -2, 0]
+radius = 1
+material = "grey"
+[[lights]]
+type = "directional"
+direction = [0, 1, 0]
+irradiance = 1
+"#,
+        );
+        assert!(render(&s, &s.settings, 4.0, &|_, _| {}).is_ok());
+        match render(&s, &s.settings, 5.0, &|_, _| {}) {
+            Err(error @ TracerError::Camera { frame, .. }) => {
+                assert_eq!(frame, 5.0);
+                assert!(error.to_string().contains("frame 5"), "{error}");
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     /// The image is bit-identical for one thread and for several, glints included.

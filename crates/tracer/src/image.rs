@@ -1,13 +1,30 @@
 //! Linear RGB images: reading PNG (sRGB-decoded) and EXR textures, bilinear lookup with
 //! wrapping, and writing linear EXR and tone-mapped sRGB PNG.
 
-use std::fs::File;
-use std::io::BufReader;
 use std::path::Path;
 
 use glam::{DVec2, DVec3};
 
 use crate::error::TracerError;
+use crate::limits;
+
+/// Checks an image's size from its header against [`limits::MAX_IMAGE_SIDE`] and
+/// [`limits::MAX_IMAGE_PIXELS`].
+fn check_size(width: usize, height: usize) -> Result<(), String> {
+    let side = limits::MAX_IMAGE_SIDE;
+    let most = limits::MAX_IMAGE_PIXELS;
+    if width > side || height > side {
+        return Err(format!(
+            "{width} × {height} pixels: wider or higher than the limit of {side}"
+        ));
+    }
+    if width.saturating_mul(height) > most {
+        return Err(format!(
+            "{width} × {height} pixels: more than the limit of {most} pixels"
+        ));
+    }
+    Ok(())
+}
 
 /// A linear RGB image, row-major from the top row.
 #[derive(Clone, Debug, PartialEq)]
@@ -52,7 +69,10 @@ impl RgbImage {
     }
 
     /// Loads a PNG (8 or 16 bits, grey or colour, alpha ignored; decoded from sRGB) or an
-    /// OpenEXR file (linear), chosen by the extension.
+    /// OpenEXR file (linear), chosen by the extension. The file must be a regular file of at
+    /// most [`limits::MAX_IMAGE_FILE_BYTES`], and the image at most
+    /// [`limits::MAX_IMAGE_SIDE`] pixels wide and high and [`limits::MAX_IMAGE_PIXELS`] in all,
+    /// as its header says (checked before the pixels are allocated).
     ///
     /// # Errors
     /// [`TracerError::Asset`] naming the file and the problem.
@@ -65,51 +85,59 @@ impl RgbImage {
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        let image = match extension.as_deref() {
-            Some("png") => Self::load_png(path).map_err(error)?,
-            Some("exr") => Self::load_exr(path).map_err(error)?,
+        let decode = match extension.as_deref() {
+            Some("png") => Self::from_png_bytes,
+            Some("exr") => Self::from_exr_bytes,
             _ => return Err(error("unknown image format (expected .png or .exr)".into())),
         };
-        if image.width == 0 || image.height == 0 {
-            return Err(error("the image is empty".into()));
-        }
-        if image.pixels.iter().any(|p| !p.is_finite()) {
-            return Err(error("the image has non-finite pixels".into()));
-        }
-        Ok(image)
+        let bytes = limits::read_file(path, limits::MAX_IMAGE_FILE_BYTES).map_err(error)?;
+        decode(&bytes).map_err(error)
     }
 
-    fn load_png(path: &Path) -> Result<Self, String> {
-        let file = File::open(path).map_err(|e| e.to_string())?;
-        let mut decoder = png::Decoder::new(BufReader::new(file));
+    /// Decodes a PNG held in memory, as [`RgbImage::load`] does.
+    ///
+    /// # Errors
+    /// The problem: not a PNG, larger than the limits, truncated, empty.
+    pub fn from_png_bytes(bytes: &[u8]) -> Result<Self, String> {
+        let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
         decoder.set_transformations(png::Transformations::EXPAND);
         let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
+        let (width, height) = (reader.info().width as usize, reader.info().height as usize);
+        check_size(width, height)?;
         let size = reader
             .output_buffer_size()
             .ok_or("the image is too large")?;
         let mut buffer = vec![0u8; size];
         let info = reader.next_frame(&mut buffer).map_err(|e| e.to_string())?;
         let channels = info.color_type.samples();
-        let bytes = match info.bit_depth {
+        let bytes_per_sample = match info.bit_depth {
             png::BitDepth::Sixteen => 2,
             _ => 1,
         };
         let (width, height) = (info.width as usize, info.height as usize);
-        let sample = |i: usize| -> f64 {
-            if bytes == 2 {
-                f64::from(u16::from_be_bytes([buffer[2 * i], buffer[2 * i + 1]])) / 65535.0
-            } else {
-                f64::from(buffer[i]) / 255.0
-            }
-        };
+        check_size(width, height)?;
+        let row_samples = width * channels;
         let mut pixels = Vec::with_capacity(width * height);
-        for y in 0..height {
-            for x in 0..width {
-                let base = (y * info.line_size) / bytes + x * channels;
+        for row in buffer.chunks(info.line_size.max(1)).take(height) {
+            let samples: Vec<f64> = if bytes_per_sample == 2 {
+                row.chunks_exact(2)
+                    .take(row_samples)
+                    .map(|b| f64::from(u16::from_be_bytes([b[0], b[1]])) / 65535.0)
+                    .collect()
+            } else {
+                row.iter()
+                    .take(row_samples)
+                    .map(|&b| f64::from(b) / 255.0)
+                    .collect()
+            };
+            if samples.len() < row_samples {
+                return Err("the decoded rows are shorter than the image".into());
+            }
+            for texel in samples.chunks_exact(channels) {
                 let rgb = if channels >= 3 {
-                    DVec3::new(sample(base), sample(base + 1), sample(base + 2))
+                    DVec3::new(texel[0], texel[1], texel[2])
                 } else {
-                    DVec3::splat(sample(base))
+                    DVec3::splat(texel[0])
                 };
                 pixels.push(DVec3::new(
                     srgb_to_linear(rgb.x),
@@ -118,6 +146,65 @@ impl RgbImage {
                 ));
             }
         }
+        Self::checked(width, height, pixels)
+    }
+
+    /// Decodes an OpenEXR file held in memory (its first RGBA layer, linear), as
+    /// [`RgbImage::load`] does.
+    ///
+    /// # Errors
+    /// The problem: not an EXR, a layer larger than the limits, damaged, non-finite pixels.
+    pub fn from_exr_bytes(bytes: &[u8]) -> Result<Self, String> {
+        use exr::prelude::*;
+        // Every layer's size from the headers, before the reader allocates pixels for one.
+        let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+            .map_err(|e| e.to_string())?;
+        for header in &meta.headers {
+            check_size(header.layer_size.width(), header.layer_size.height())?;
+        }
+        let image = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .rgba_channels(
+                |resolution, _| {
+                    // Within the limits: every header was checked above.
+                    let (w, h) = (resolution.width(), resolution.height());
+                    RgbImage::filled(w, h, DVec3::ZERO)
+                },
+                |image: &mut RgbImage, position, (r, g, b, _a): (f32, f32, f32, f32)| {
+                    let i = position.y() * image.width + position.x();
+                    if let Some(p) = image.pixels.get_mut(i) {
+                        *p = DVec3::new(r.into(), g.into(), b.into());
+                    }
+                },
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(std::io::Cursor::new(bytes))
+            .map_err(|e| e.to_string())?;
+        let pixels = image.layer_data.channel_data.pixels;
+        Self::checked(pixels.width, pixels.height, pixels.pixels)
+    }
+
+    /// The image, unless it is empty, its pixels do not match its size, or one is not finite.
+    fn checked(width: usize, height: usize, pixels: Vec<DVec3>) -> Result<Self, String> {
+        if width == 0 || height == 0 {
+            return Err("the image is empty".into());
+        }
+        if pixels.len() != width * height {
+            return Err(format!(
+                "{} pixels decoded for {width} × {height}",
+                pixels.len()
+            ));
+        }
+        if let Some(i) = pixels.iter().position(|p| !p.is_finite()) {
+            return Err(format!(
+                "pixel ({}, {}) is not finite",
+                i % width,
+                i / width
+            ));
+        }
         Ok(Self {
             width,
             height,
@@ -125,18 +212,13 @@ impl RgbImage {
         })
     }
 
-    fn load_exr(path: &Path) -> Result<Self, String> {
-        use exr::prelude::*;
-        let image = read_first_rgba_layer_from_file(
-            path,
-            |resolution, _| RgbImage::filled(resolution.width(), resolution.height(), DVec3::ZERO),
-            |image: &mut RgbImage, position, (r, g, b, _a): (f32, f32, f32, f32)| {
-                let i = position.y() * image.width + position.x();
-                image.pixels[i] = DVec3::new(r.into(), g.into(), b.into());
-            },
-        )
-        .map_err(|e| e.to_string())?;
-        Ok(image.layer_data.channel_data.pixels)
+    /// The largest texel value of any channel.
+    #[must_use]
+    pub fn max_value(&self) -> f64 {
+        self.pixels
+            .iter()
+            .map(|p| p.max_element())
+            .fold(0.0, f64::max)
     }
 
     /// The texel at integer coordinates, wrapped.
@@ -284,9 +366,27 @@ impl RgbImage {
     /// Writes a linear 32-bit float RGB OpenEXR file.
     ///
     /// # Errors
-    /// [`TracerError::Output`] when the file cannot be written.
+    /// [`TracerError::Output`] when the file cannot be written, or when a pixel is not finite
+    /// or beyond the 32-bit float range (it would be written as infinity); rendered images
+    /// never are (see [`crate::render`]).
     pub fn write_exr(&self, path: &Path) -> Result<(), TracerError> {
         use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+        let largest = f64::from(f32::MAX);
+        if let Some(i) = self
+            .pixels
+            .iter()
+            .position(|p| !(p.is_finite() && p.abs().max_element() <= largest))
+        {
+            return Err(TracerError::Output {
+                path: path.to_path_buf(),
+                problem: format!(
+                    "pixel ({}, {}) is {}: not a finite 32-bit float",
+                    i % self.width.max(1),
+                    i / self.width.max(1),
+                    limits::vector(self.pixels[i])
+                ),
+            });
+        }
         let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let p = self.pixels[y * self.width + x];
             (p.x as f32, p.y as f32, p.z as f32)
@@ -422,6 +522,59 @@ mod tests {
                 .to_string()
                 .contains("unknown image format")
         );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// An image's size is checked against the limits from its header, before its pixels are
+    /// allocated: a PNG of 2 KB whose header claims 60000 × 60000 pixels (it asked for 10.8 GB),
+    /// one within the side limit but over the pixel limit, an EXR whose data window claims
+    /// 60000 × 60000; each is an error naming the file and the size.
+    #[test]
+    fn image_sizes_are_checked_from_the_header() {
+        use crate::fuzz::{patch_exr_data_window, patch_png_size, small_exr, small_png};
+        let dir = std::env::temp_dir().join(format!("glint-image-size-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let png = small_png(4, 3);
+        assert_eq!(RgbImage::from_png_bytes(&png).unwrap().pixels.len(), 12);
+        for (width, height, words) in [
+            (60_000, 60_000, "wider or higher than the limit of 16384"),
+            (16_384, 16_384, "more than the limit of 16777216 pixels"),
+        ] {
+            let mut crafted = png.clone();
+            patch_png_size(&mut crafted, width, height, true);
+            let path = dir.join(format!("{width}.png"));
+            std::fs::write(&path, &crafted).unwrap();
+            let message = RgbImage::load(&path).unwrap_err().to_string();
+            assert!(message.contains(&format!("{width}.png")), "{message}");
+            assert!(message.contains(words), "{message}");
+        }
+        let exr = small_exr(&dir);
+        assert_eq!(RgbImage::from_exr_bytes(&exr).unwrap().pixels.len(), 15);
+        let mut crafted = exr;
+        patch_exr_data_window(&mut crafted, 59_999, 59_999);
+        let path = dir.join("huge.exr");
+        std::fs::write(&path, &crafted).unwrap();
+        let message = RgbImage::load(&path).unwrap_err().to_string();
+        assert!(message.contains("huge.exr"), "{message}");
+        assert!(message.contains("60000 × 60000"), "{message}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Pixels that single precision cannot hold are refused when an EXR is written, never
+    /// written as infinities.
+    #[test]
+    fn exr_output_refuses_non_finite_pixels() {
+        let dir = std::env::temp_dir().join(format!("glint-exr-inf-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for bad in [f64::INFINITY, f64::NAN, 1e39] {
+            let mut image = gradient();
+            image.pixels[7] = DVec3::new(0.5, bad, 0.5);
+            let message = image
+                .write_exr(&dir.join("bad.exr"))
+                .unwrap_err()
+                .to_string();
+            assert!(message.contains("pixel (2, 1)"), "{message}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

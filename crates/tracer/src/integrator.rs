@@ -189,6 +189,10 @@ pub struct PathState {
     pub counters: Vec<GlintCounters>,
     /// Rays traced (camera, extension and shadow rays).
     pub rays: u64,
+    /// Samples clamped by the film (see [`crate::RenderStatistics::clamped_samples`]).
+    pub clamped_samples: u64,
+    /// Samples discarded by the film (see [`crate::RenderStatistics::discarded_samples`]).
+    pub discarded_samples: u64,
 }
 
 /// The counters of material `index`, growing `counters` to hold it.
@@ -288,7 +292,8 @@ impl EmissionWeighting {
     }
 }
 
-/// The radiance arriving at the camera along `camera_ray`.
+/// The radiance arriving at the camera along `camera_ray`: not finite when the path overflowed,
+/// which the film counts (see [`crate::RenderStatistics::discarded_samples`]).
 pub fn radiance(
     scene: &Scene,
     settings: &RenderSettings,
@@ -437,7 +442,12 @@ pub fn radiance(
         previous = Some((pdf, surface.point));
         let f = material.eval(wi, wo, &mut ctx);
         throughput *= f * (wo.z / pdf);
-        if !throughput.is_finite() || throughput == DVec3::ZERO {
+        if !throughput.is_finite() {
+            // An overflow (or 0·∞) on the path: the sample has no meaningful value; the film
+            // discards and counts it.
+            return DVec3::NAN;
+        }
+        if throughput == DVec3::ZERO {
             break;
         }
         depth += 1;
@@ -451,11 +461,8 @@ pub fn radiance(
             throughput /= survive;
         }
     }
-    if radiance.is_finite() {
-        radiance.max(DVec3::ZERO)
-    } else {
-        DVec3::ZERO
-    }
+    // Not finite after an overflow: the film discards and counts such samples.
+    radiance
 }
 
 /// The film offset of a pixel sample for the filter (filter importance sampling: every sample

@@ -18,6 +18,9 @@
 //!   importance sampling (power heuristic) and Russian roulette.
 //! - [`film`]: pixel filters, tiles rendered in parallel with per-pixel seeded samplers (the
 //!   image is bit-identical for any thread count), EXR and PNG output.
+//! - [`limits`]: what the tracer accepts (magnitudes, sizes, counts), checked where values
+//!   enter, so that hostile input gets an error rather than a panic, an abort or an image of
+//!   infinities.
 //!
 //! A glittery floor under a small sphere light, rendered tiny (scene files are documented in
 //! `scenes/README.md`):
@@ -70,9 +73,12 @@ pub mod camera;
 pub mod distribution;
 mod error;
 pub mod film;
+#[cfg(test)]
+mod fuzz;
 pub mod image;
 pub mod integrator;
 pub mod light;
+pub mod limits;
 pub mod material;
 pub mod mesh;
 pub mod sampler;

@@ -6,7 +6,87 @@ use std::path::Path;
 use glam::{DAffine3, DMat3, DVec2, DVec3};
 
 use crate::error::TracerError;
+use crate::limits;
 use crate::shape::{Ray, SurfaceHit};
+
+/// Checks the numbers of the OBJ's statements before parsing: `v`, `vn` and `vt` values as the
+/// single-precision numbers the OBJ reader makes of them (positions finite and within
+/// [`limits::MAX_COORDINATE`], normals and texture coordinates finite), and the indices of `f`
+/// and `l` statements (not 0; positive ones at most the file's count of that kind, negative
+/// ones at most the count before the statement). tobj 4 multiplies unchecked indices and
+/// overflows on `f 1/1/-9` after one normal or on an index of 2⁶³. An error names the
+/// statement by its OBJ index (from 1, as faces count) or its kind, and its line.
+fn check_obj_values(bytes: &[u8]) -> Result<(), String> {
+    const KINDS: [&str; 3] = ["v", "vt", "vn"];
+    let text = String::from_utf8_lossy(bytes);
+    let kind_of = |word: Option<&str>| KINDS.iter().position(|k| Some(*k) == word);
+    let mut totals = [0usize; 3];
+    for line in text.lines() {
+        if let Some(kind) = kind_of(line.split_whitespace().next()) {
+            totals[kind] += 1;
+        }
+    }
+    let mut counts = [0usize; 3];
+    for (line_index, line) in text.lines().enumerate() {
+        let line_number = line_index + 1;
+        let mut words = line.split_whitespace();
+        let first = words.next();
+        if matches!(first, Some("f" | "l")) {
+            for corner in words {
+                for (kind, index) in corner.split('/').enumerate().take(3) {
+                    // Words that are not numbers are the OBJ reader's error to report.
+                    let Ok(index) = index.parse::<i64>() else {
+                        continue;
+                    };
+                    let fits = match index {
+                        0 => false,
+                        i if i > 0 => i.unsigned_abs() <= totals[kind] as u64,
+                        i => i.unsigned_abs() <= counts[kind] as u64,
+                    };
+                    if !fits {
+                        return Err(format!(
+                            "{} (line {line_number}): index {index} refers to no `{}` ({} in the file, {} before this line)",
+                            first.unwrap_or_default(),
+                            KINDS[kind],
+                            totals[kind],
+                            counts[kind]
+                        ));
+                    }
+                }
+            }
+            continue;
+        }
+        let Some(kind) = kind_of(first) else {
+            continue;
+        };
+        counts[kind] += 1;
+        let (what, limit, take) = match kind {
+            0 => ("position", limits::MAX_COORDINATE, 3),
+            1 => ("texture coordinate", f64::INFINITY, 2),
+            _ => ("normal", f64::INFINITY, 3),
+        };
+        for word in words.take(take) {
+            let Ok(value) = word.parse::<f64>() else {
+                continue;
+            };
+            let single = f64::from(value as f32);
+            if !(single.is_finite() && single.abs() <= limit) {
+                let bound = if limit.is_finite() {
+                    format!(" and within ±{limit:e}")
+                } else {
+                    String::new()
+                };
+                return Err(format!(
+                    "{} {} (line {line_number}): the {what} component {} must be finite{bound}",
+                    KINDS[kind],
+                    counts[kind],
+                    limits::echo(word),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
 
 /// An indexed triangle mesh in world space.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -22,17 +102,41 @@ pub struct Mesh {
 }
 
 impl Mesh {
-    /// Loads every model of an OBJ file into one mesh.
+    /// Loads every model of an OBJ file into one mesh. The file must be a regular file of at
+    /// most [`limits::MAX_MESH_FILE_BYTES`]; `mtllib` statements are ignored (no other file is
+    /// opened).
     ///
     /// # Errors
-    /// [`TracerError::Asset`] when the file cannot be read or parsed, or has no triangles.
+    /// [`TracerError::Asset`] naming the file when it cannot be read or parsed, has no
+    /// triangles, or has a value out of range (naming the `v`, `vn` or `vt` statement by its
+    /// OBJ index, counted from 1 as faces count them, and its line).
     pub fn load_obj(path: &Path) -> Result<Self, TracerError> {
+        let bytes = limits::read_file(path, limits::MAX_MESH_FILE_BYTES).map_err(|problem| {
+            TracerError::Asset {
+                path: path.to_path_buf(),
+                problem,
+            }
+        })?;
+        Self::from_obj_bytes(&bytes, path)
+    }
+
+    /// Parses OBJ text, as [`Mesh::load_obj`] does once the file is read; `path` names it in
+    /// errors.
+    ///
+    /// # Errors
+    /// As [`Mesh::load_obj`].
+    pub fn from_obj_bytes(bytes: &[u8], path: &Path) -> Result<Self, TracerError> {
         let asset_error = |problem: String| TracerError::Asset {
             path: path.to_path_buf(),
             problem,
         };
-        let (models, _materials) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS)
-            .map_err(|e| asset_error(e.to_string()))?;
+        check_obj_values(bytes).map_err(asset_error)?;
+        let (models, _materials) = tobj::load_obj_buf(
+            &mut std::io::Cursor::new(bytes),
+            &tobj::GPU_LOAD_OPTIONS,
+            |_| Err(tobj::LoadError::OpenFileFailed),
+        )
+        .map_err(|e| asset_error(e.to_string()))?;
         let mut mesh = Self::default();
         let mut with_normals = true;
         let mut with_uvs = true;
@@ -43,7 +147,7 @@ impl Mesh {
         }
         for model in &models {
             let m = &model.mesh;
-            let base = mesh.positions.len() as u32;
+            let base = mesh.positions.len();
             mesh.positions.extend(
                 m.positions
                     .chunks_exact(3)
@@ -63,16 +167,21 @@ impl Mesh {
                         .map(|t| DVec2::new(t[0].into(), t[1].into())),
                 );
             }
+            let Ok(base) = u32::try_from(base) else {
+                return Err(asset_error("more than 2³² vertices".into()));
+            };
             for tri in m.indices.chunks_exact(3) {
+                let corner = |i: u32| base.saturating_add(i);
                 mesh.triangles
-                    .push([base + tri[0], base + tri[1], base + tri[2]]);
+                    .push([corner(tri[0]), corner(tri[1]), corner(tri[2])]);
             }
         }
         mesh.validate().map_err(asset_error)?;
         Ok(mesh)
     }
 
-    /// Checks that indices are in range, attributes match the positions and values are finite.
+    /// Checks that indices are in range, attributes match the positions, values are finite and
+    /// positions within [`limits::MAX_COORDINATE`].
     ///
     /// # Errors
     /// A description of the first problem found.
@@ -90,8 +199,24 @@ impl Mesh {
                 self.uvs.len()
             ));
         }
-        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
-            return Err(format!("vertex {i} is not finite"));
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| !(p.is_finite() && p.abs().max_element() <= limits::MAX_COORDINATE))
+        {
+            return Err(format!(
+                "vertex {i} at {} is not finite or beyond the coordinate limit {:e}",
+                limits::vector(self.positions[i]),
+                limits::MAX_COORDINATE
+            ));
+        }
+        if let Some(i) = self.normals.iter().position(|n| !n.is_finite()) {
+            return Err(format!("the normal of vertex {i} is not finite"));
+        }
+        if let Some(i) = self.uvs.iter().position(|t| !t.is_finite()) {
+            return Err(format!(
+                "the texture coordinates of vertex {i} are not finite"
+            ));
         }
         if let Some(t) = self
             .triangles
@@ -274,6 +399,61 @@ mod tests {
         assert!(Mesh::default().validate().is_err());
         let missing = Mesh::load_obj(Path::new("/nonexistent/mesh.obj"));
         assert!(matches!(missing, Err(TracerError::Asset { .. })));
+    }
+
+    /// Values an OBJ cannot use are errors naming the file, the statement by its OBJ index and
+    /// line: NaN or infinite normals and texture coordinates, positions beyond the coordinate
+    /// limit (as the single-precision numbers the reader makes of them).
+    #[test]
+    fn bad_obj_values_are_named_by_file_and_index() {
+        let good = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\nf 1/1/1 2/2/2 3/3/3\n";
+        assert!(Mesh::from_obj_bytes(good.as_bytes(), Path::new("good.obj")).is_ok());
+        for (from, to, words) in [
+            (
+                "vn 0 0 1\nvn 0 0 1\nf",
+                "vn 0 0 1\nvn 0 nan 1\nf",
+                "vn 3 (line 9)",
+            ),
+            ("vt 1 0\n", "vt inf 0\n", "vt 2 (line 5)"),
+            ("v 1 0 0\n", "v 3e38 0 0\n", "v 2 (line 2)"),
+            ("v 1 0 0\n", "v 1 1e39 0\n", "v 2 (line 2)"),
+            ("v 1 0 0\n", "v 1 0 -2e15\n", "within ±1e15"),
+        ] {
+            let text = good.replacen(from, to, 1);
+            let error = Mesh::from_obj_bytes(text.as_bytes(), Path::new("bad.obj")).unwrap_err();
+            let message = error.to_string();
+            assert!(message.contains("bad.obj"), "{message}");
+            assert!(message.contains(words), "{to}: `{message}` lacks `{words}`");
+        }
+        // Face indices tobj would overflow on, and 0, are errors naming the line.
+        for (face, words) in [
+            ("f 1/1/-9 2/2/2 3/3/3", "index -9 refers to no `vn`"),
+            (
+                "f 1/1/1 2/9223372036854775807/2 3/3/3",
+                "index 9223372036854775807",
+            ),
+            ("f 0 2 3", "index 0"),
+            ("f 1 2 4", "index 4 refers to no `v` (3 in the file"),
+        ] {
+            let text = good.replacen("f 1/1/1 2/2/2 3/3/3", face, 1);
+            let message = Mesh::from_obj_bytes(text.as_bytes(), Path::new("f.obj"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                message.contains("f (line 10)") && message.contains(words),
+                "{message}"
+            );
+        }
+        // A material library is never opened (here a device that would never end).
+        let with_library = format!("mtllib /dev/zero\n{good}");
+        assert!(Mesh::from_obj_bytes(with_library.as_bytes(), Path::new("m.obj")).is_ok());
+        // A file that is no regular file is refused before it is read.
+        if Path::new("/dev/zero").exists() {
+            let zero = Mesh::load_obj(Path::new("/dev/zero"))
+                .unwrap_err()
+                .to_string();
+            assert!(zero.contains("not a regular file"), "{zero}");
+        }
     }
 
     #[test]
