@@ -59,20 +59,6 @@ pub const MAX_MIX_DEPTH: usize = 16;
 /// fewer than 60.
 pub const MAX_MATERIAL_PARTS: usize = 256;
 
-/// The widest pixel footprint a glint material evaluates its particles in, in particle squares
-/// (the unit square of N particles) along u or v; a wider footprint (a grazing view, a large
-/// `uv_scale` or `footprint_scale`) is shaded with the material's smooth limit. The footprint
-/// then holds at least 1024·N·∫p particles, whose count is within a few tenths of a percent
-/// of its expectation for any N ≥ 1, which is what the smooth limit shades; and the count
-/// tree's work on a footprint spanning many squares grows with the squares it spans (and
-/// overflows for footprints spanning more than 2⁶³), so the bound also bounds a query's work.
-pub const MAX_GLINT_FOOTPRINT: f64 = 1024.0;
-
-/// The largest texture coordinate (times `uv_scale`, in particle squares) at which a glint
-/// material evaluates its particles: at 2³¹ doubles still resolve 2⁻²¹ of a square. Beyond,
-/// the smooth limit is shaded (as for [`MAX_GLINT_FOOTPRINT`]).
-pub const MAX_GLINT_UV: f64 = 2_147_483_648.0;
-
 /// The largest real or imaginary part of an index of refraction (η, k): real materials have
 /// η ≤ 4 and k ≤ 10 in the visible; 10³ keeps the Fresnel terms' η²k² at 10¹².
 pub const MAX_IOR: f64 = 1e3;
