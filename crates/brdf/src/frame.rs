@@ -17,9 +17,41 @@ pub fn orthonormal_basis(axis: DVec3) -> (DVec3, DVec3) {
     )
 }
 
+/// `v` scaled to unit length, or `None` for a zero or non-finite vector. Any finite magnitude
+/// works: a vector whose squared length overflows or underflows (`[1e200, 0, 1e200]`) is first
+/// divided by its largest component; any other is normalized as `DVec3::normalize` does.
+#[must_use]
+pub fn unit_direction(v: DVec3) -> Option<DVec3> {
+    if !v.is_finite() || v == DVec3::ZERO {
+        return None;
+    }
+    let squared = v.length_squared();
+    let v = if squared.is_finite() && squared >= f64::MIN_POSITIVE {
+        v
+    } else {
+        v / v.abs().max_element()
+    };
+    Some(v.normalize())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unit_directions_of_any_finite_magnitude() {
+        for scale in [1e-310, 1e-200, 1.0, 3.0, 1e200, f64::MAX] {
+            let d = unit_direction(DVec3::new(scale, 0.0, scale)).unwrap();
+            assert!(
+                (d - DVec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-15,
+                "{scale}"
+            );
+        }
+        let v = DVec3::new(0.3, -0.2, 0.7);
+        assert_eq!(unit_direction(v), Some(v.normalize()));
+        assert_eq!(unit_direction(DVec3::ZERO), None);
+        assert_eq!(unit_direction(DVec3::new(f64::NAN, 0.0, 1.0)), None);
+    }
 
     #[test]
     fn basis_is_orthonormal_and_right_handed() {

@@ -508,14 +508,9 @@ fn direction(v: [f64; 3], name: &str) -> Result<DVec3, Failure> {
     if (length_squared - 1.0).abs() <= UNIT_TOLERANCE {
         return Ok(v);
     }
-    // A vector whose squared length overflows or underflows is scaled first, so that its
-    // length is a normal number.
-    let v = if length_squared.is_normal() {
-        v
-    } else {
-        v / v.abs().max_element()
-    };
-    Ok(v.normalize())
+    // Any other finite vector, of any magnitude, normalized as glint-brdf does it.
+    glint_brdf::frame::unit_direction(v)
+        .ok_or_else(|| Failure::argument(format!("`{name}` is the zero vector, not a direction")))
 }
 
 /// How far from 1 the squared length of a vector the C API takes for unit may be: a few

@@ -125,22 +125,14 @@ impl EvalMaterial {
     }
 }
 
-/// A direction, normalized; zero and non-finite vectors are rejected. Vectors too long (or too
-/// short) to square are scaled by their largest component first.
+/// A direction, normalized ([`glint_brdf::frame::unit_direction`]); zero and non-finite
+/// vectors are rejected.
 fn direction(v: [f64; 3], name: &str) -> Result<DVec3, String> {
     let v = DVec3::from_array(v);
     if !v.is_finite() {
         return Err(format!("{name} must hold finite numbers, not {v}"));
     }
-    if v == DVec3::ZERO {
-        return Err(format!("{name} has zero length"));
-    }
-    let squared = v.length_squared();
-    if squared.is_finite() && squared >= f64::MIN_POSITIVE {
-        return Ok(v.normalize());
-    }
-    // Too long (or short) to square: scale by the largest component first.
-    Ok((v / v.abs().max_element()).normalize())
+    glint_brdf::frame::unit_direction(v).ok_or_else(|| format!("{name} has zero length"))
 }
 
 fn vector2(v: [f64; 2], name: &str) -> Result<DVec2, String> {
