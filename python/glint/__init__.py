@@ -53,14 +53,17 @@ class Material:
     ``fresnel`` (None, ``{"conductor": {"eta": [r, g, b], "k": [r, g, b]}}`` or
     ``{"dielectric": {"eta": x}}``), ``multinomial`` ("exact" or "normal"),
     ``negligible_count`` (skip queries whose expected count is provably below it; 0 = never),
-    and, keyword only, ``expected_footprint_area`` (Eq. 11) and ``pdf_points``.
+    and, keyword only, ``expected_footprint_area`` (Eq. 11), ``pdf_quadrature`` (the
+    sampler pdf's rule over the cone: "cubature", the default, or "qmc", the paper's) and
+    ``pdf_points`` (its QMC points).
 
     Invalid parameters raise ``ValueError`` naming the parameter.
     """
 
     def __init__(self, distribution="beckmann", alpha=0.1, alpha_y=None, particles=1e6,
                  gamma_deg=1.0, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
-                 negligible_count=0.0, *, expected_footprint_area=1e-6, pdf_points=64):
+                 negligible_count=0.0, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
+                 pdf_points=64):
         spec = {
             "distribution": distribution,
             "alpha": _finite("alpha", alpha),
@@ -72,6 +75,7 @@ class Material:
             "negligible_count": _finite("negligible_count", negligible_count),
             "expected_footprint_area": _finite("expected_footprint_area",
                                                expected_footprint_area),
+            "pdf_quadrature": pdf_quadrature,
             "pdf_points": _finite("pdf_points", pdf_points),
         }
         if alpha_y is not None:

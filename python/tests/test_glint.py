@@ -139,6 +139,7 @@ def test_coloured_fresnel_gives_rgb_columns():
     (dict(gamma_deg=90), "gamma"),
     (dict(distribution="beckman"), "material.distribution"),
     (dict(multinomial="approximate"), "material.multinomial"),
+    (dict(pdf_quadrature="gauss"), "material.pdf_quadrature"),
     (dict(seed=-1), "material.seed"),
     (dict(epsilon=-0.5), "epsilon"),
     (dict(negligible_count=-1.0), "negligible count"),

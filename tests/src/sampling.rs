@@ -5,7 +5,7 @@
 use glam::DVec3;
 use glint_brdf::{
     Bxdf, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MicrofacetBrdf,
-    NormalSampling,
+    NormalSampling, PdfQuadrature,
 };
 
 use crate::SplitMix64;
@@ -143,9 +143,18 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
             let mut parameters =
                 GlintParameters::new(Microfacet::new(kind, 0.15, 0.15).expect("valid roughness"));
             parameters.gamma = 3f64.to_radians();
-            parameters.pdf_points = 1024;
+            // The default pdf (the 7-point cubature) for Beckmann, the paper's QMC rule with
+            // many points for GGX.
+            if kind == DistributionKind::Ggx {
+                parameters.pdf_quadrature = PdfQuadrature::QuasiMonteCarlo;
+                parameters.pdf_points = 1024;
+            }
             cases.push(SamplerCase {
-                name: format!("glint {kind:?} α 0.15 γ 3° θ {:.0}°", theta_i.to_degrees()),
+                name: format!(
+                    "glint {kind:?} α 0.15 γ 3° θ {:.0}° ({:?} pdf)",
+                    theta_i.to_degrees(),
+                    parameters.pdf_quadrature
+                ),
                 sampler: Sampler::Glint(Box::new(
                     DiscreteBrdf::new(parameters).expect("valid material"),
                 )),

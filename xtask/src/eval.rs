@@ -210,6 +210,14 @@ mod tests {
                 with("\"pdf_points\": 1e30"),
                 "material.pdf_points = 1e30 must be",
             ),
+            (
+                with("\"pdf_quadrature\": \"gauss\""),
+                "material.pdf_quadrature \"gauss\" is unknown",
+            ),
+            (
+                with("\"pdf_quadrature\": 7"),
+                "material.pdf_quadrature 7 is unknown",
+            ),
             (with("\"epsilon\": 1e300"), "epsilon = 1e300 is invalid"),
             (
                 with("\"expected_footprint_area\": 0"),

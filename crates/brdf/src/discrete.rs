@@ -53,7 +53,7 @@ use crate::distribution::{Microfacet, NormalSampling};
 use crate::error::BrdfError;
 use crate::fresnel::Fresnel;
 use crate::glint::GlintBxdf;
-use crate::glint_sampling::GlintSampler;
+use crate::glint_sampling::{GlintSampler, PdfQuadrature};
 use crate::negligible::NegligibleTest;
 use crate::smooth::{MicrofacetBrdf, above_horizon};
 
@@ -70,7 +70,8 @@ use crate::smooth::{MicrofacetBrdf, above_horizon};
 /// | `multinomial` | exact splits or the paper's normal approximation | exact |
 /// | `colour_channels` | 0, or 3 for Dirichlet-coloured flakes (Fig. 8) | 0 |
 /// | `sampling_scale` | α_s/α of the sampler (Sec. 3.4) | 2 |
-/// | `pdf_points` | QMC points of the sampling pdf | 64 |
+/// | `pdf_quadrature` | the sampling pdf's rule over the cone | 7-point cubature |
+/// | `pdf_points` | QMC points of the sampling pdf, when `pdf_quadrature` is QMC | 64 |
 /// | `expected_footprint_area` | the footprint area Eq. 11 plans for | 10⁻⁶ |
 /// | `negligible_count` | skip queries whose expected count is below this | 0 (off) |
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,7 +95,10 @@ pub struct GlintParameters {
     pub colour_channels: usize,
     /// α_s / α of the sampling distribution (the paper: 2).
     pub sampling_scale: f64,
-    /// QMC points of the sampling pdf (the paper: 64).
+    /// How the sampling pdf integrates over the cone: a 7-point cubature (default) or the
+    /// paper's QMC over `pdf_points` points.
+    pub pdf_quadrature: PdfQuadrature,
+    /// QMC points of the sampling pdf when `pdf_quadrature` is QMC (the paper: 64).
     pub pdf_points: usize,
     /// The expected footprint area for Eq. 11 (texture units).
     pub expected_footprint_area: f64,
@@ -105,7 +109,8 @@ pub struct GlintParameters {
 
 impl GlintParameters {
     /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, seed 0, F = 1,
-    /// exact multinomials, no colour, α_s = 2α, 64 pdf points, footprints of 10⁻⁶, every
+    /// exact multinomials, no colour, α_s = 2α, the 7-point cubature for the sampling pdf
+    /// (64 QMC points when switched to QMC), footprints of 10⁻⁶, every
     /// query traversed (no negligible-query test).
     #[must_use]
     pub fn new(distribution: Microfacet) -> Self {
@@ -119,6 +124,7 @@ impl GlintParameters {
             multinomial: MultinomialMode::Exact,
             colour_channels: 0,
             sampling_scale: 2.0,
+            pdf_quadrature: PdfQuadrature::Cubature,
             pdf_points: 64,
             expected_footprint_area: 1e-6,
             negligible_count: 0.0,
@@ -192,6 +198,7 @@ impl DiscreteBrdf {
             distribution,
             parameters.sampling_scale,
             gamma,
+            parameters.pdf_quadrature,
             parameters.pdf_points,
         )?;
         let config = CountTreeConfig {

@@ -90,6 +90,32 @@ typedef enum GlintMultinomial {
 } GlintMultinomial;
 
 /**
+ * How the sampler's pdf integrates over the cone of radius γ.
+ */
+enum GlintPdfQuadrature
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * A 7-point cubature exact to degree 5, for cones up to γ = 0.35 α_s above the horizon
+   * (quasi-Monte Carlo elsewhere).
+   */
+  GLINT_PDF_CUBATURE = 0,
+  /**
+   * The paper's quasi-Monte Carlo rule over `pdf_points` points.
+   */
+  GLINT_PDF_QMC = 1,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum GlintPdfQuadrature GlintPdfQuadrature;
+#else
+typedef uint32_t GlintPdfQuadrature;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * A glint material (opaque): its particle set, sampler and smooth limit. Immutable once
  * built: share one between any number of threads.
  */
@@ -117,6 +143,7 @@ typedef struct GlintScratch GlintScratch;
  * | `dielectric_eta` | 1.5 | > 0 |
  * | `multinomial` | `GLINT_MULTINOMIAL_EXACT` | a `GlintMultinomial` |
  * | `expected_footprint_area` | 1e-6 | > 0 |
+ * | `pdf_quadrature` | `GLINT_PDF_CUBATURE` | a `GlintPdfQuadrature` |
  * | `pdf_points` | 64 | 1 to 4096 |
  * | `negligible_count` | 0 | >= 0 (0 = every query traversed) |
  */
@@ -175,7 +202,12 @@ typedef struct GlintMaterialParams {
    */
   double expected_footprint_area;
   /**
-   * Quasi-Monte Carlo points of the sampler's pdf.
+   * The sampler pdf's rule over the cone: a `GlintPdfQuadrature`.
+   */
+  uint32_t pdf_quadrature;
+  /**
+   * Quasi-Monte Carlo points of the sampler's pdf (under `GLINT_PDF_QMC`, and for cones
+   * the cubature does not cover).
    */
   uint32_t pdf_points;
   /**

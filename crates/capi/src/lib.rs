@@ -60,13 +60,14 @@ use std::ptr;
 
 use glint_brdf::{
     Bxdf, BxdfSample, DVec2, DVec3, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintBxdf,
-    GlintParameters, Microfacet, MultinomialMode, QueryScratch, TreeError,
+    GlintParameters, Microfacet, MultinomialMode, PdfQuadrature, QueryScratch, TreeError,
 };
 
 use crate::boundary::{Failure, exclusive, free, guard, non_null, read, read_array, shared, write};
 pub use crate::types::{
     GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
-    GlintMaterialParams, GlintMultinomial, GlintSample, GlintScratch, GlintStatus,
+    GlintMaterialParams, GlintMultinomial, GlintPdfQuadrature, GlintSample, GlintScratch,
+    GlintStatus,
 };
 
 /// Fills `*params` with the defaults of glint-brdf's `GlintParameters::new` around Beckmann
@@ -387,6 +388,7 @@ impl Default for GlintMaterialParams {
             dielectric_eta: 1.5,
             multinomial: GlintMultinomial::GLINT_MULTINOMIAL_EXACT as u32,
             expected_footprint_area: 1e-6,
+            pdf_quadrature: GlintPdfQuadrature::GLINT_PDF_CUBATURE as u32,
             pdf_points: 64,
             negligible_count: 0.0,
         }
@@ -404,6 +406,8 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
     const DIELECTRIC: u32 = GlintFresnel::GLINT_FRESNEL_DIELECTRIC as u32;
     const EXACT: u32 = GlintMultinomial::GLINT_MULTINOMIAL_EXACT as u32;
     const NORMAL: u32 = GlintMultinomial::GLINT_MULTINOMIAL_NORMAL as u32;
+    const CUBATURE: u32 = GlintPdfQuadrature::GLINT_PDF_CUBATURE as u32;
+    const QMC: u32 = GlintPdfQuadrature::GLINT_PDF_QMC as u32;
     let kind = match p.distribution {
         BECKMANN => DistributionKind::Beckmann,
         GGX => DistributionKind::Ggx,
@@ -439,6 +443,15 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
             )));
         }
     };
+    let pdf_quadrature = match p.pdf_quadrature {
+        CUBATURE => PdfQuadrature::Cubature,
+        QMC => PdfQuadrature::QuasiMonteCarlo,
+        other => {
+            return Err(Failure::parameter(format!(
+                "pdf_quadrature = {other} is invalid: use GLINT_PDF_CUBATURE or GLINT_PDF_QMC"
+            )));
+        }
+    };
     // 2^53: every whole number up to it is a double, and the tree's limit.
     const MAX_PARTICLES: f64 = 9_007_199_254_740_992.0;
     if !(p.particles >= 1.0 && p.particles <= MAX_PARTICLES && p.particles.fract() == 0.0) {
@@ -458,6 +471,7 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
         fresnel,
         multinomial,
         expected_footprint_area: p.expected_footprint_area,
+        pdf_quadrature,
         pdf_points: p.pdf_points as usize,
         negligible_count: p.negligible_count,
         ..GlintParameters::new(distribution)

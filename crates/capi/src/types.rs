@@ -65,6 +65,18 @@ pub enum GlintMultinomial {
     GLINT_MULTINOMIAL_NORMAL = 1,
 }
 
+/// How the sampler's pdf integrates over the cone of radius γ.
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(non_camel_case_types)]
+pub enum GlintPdfQuadrature {
+    /// A 7-point cubature exact to degree 5, for cones up to γ = 0.35 α_s above the horizon
+    /// (quasi-Monte Carlo elsewhere).
+    GLINT_PDF_CUBATURE = 0,
+    /// The paper's quasi-Monte Carlo rule over `pdf_points` points.
+    GLINT_PDF_QMC = 1,
+}
+
 /// The parameters of a glint material. Fill it with `glint_material_params_default`, change
 /// what you need, and pass it to `glint_material_new`, which validates every field.
 ///
@@ -81,6 +93,7 @@ pub enum GlintMultinomial {
 /// | `dielectric_eta` | 1.5 | > 0 |
 /// | `multinomial` | `GLINT_MULTINOMIAL_EXACT` | a `GlintMultinomial` |
 /// | `expected_footprint_area` | 1e-6 | > 0 |
+/// | `pdf_quadrature` | `GLINT_PDF_CUBATURE` | a `GlintPdfQuadrature` |
 /// | `pdf_points` | 64 | 1 to 4096 |
 /// | `negligible_count` | 0 | >= 0 (0 = every query traversed) |
 #[repr(C)]
@@ -113,7 +126,10 @@ pub struct GlintMaterialParams {
     pub multinomial: u32,
     /// The footprint area (texture units) the tree is shaped for (Eq. 11).
     pub expected_footprint_area: f64,
-    /// Quasi-Monte Carlo points of the sampler's pdf.
+    /// The sampler pdf's rule over the cone: a `GlintPdfQuadrature`.
+    pub pdf_quadrature: u32,
+    /// Quasi-Monte Carlo points of the sampler's pdf (under `GLINT_PDF_QMC`, and for cones
+    /// the cubature does not cover).
     pub pdf_points: u32,
     /// τ: a query whose expected count is provably below τ is answered 0 without a traversal.
     pub negligible_count: f64,

@@ -536,6 +536,13 @@ fn invalid_parameters_are_named() {
         ),
         (
             GlintMaterialParams {
+                pdf_quadrature: 2,
+                ..defaults
+            },
+            "pdf_quadrature = 2",
+        ),
+        (
+            GlintMaterialParams {
                 expected_footprint_area: 0.0,
                 ..defaults
             },

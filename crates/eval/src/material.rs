@@ -3,6 +3,7 @@
 
 use glint_brdf::{
     DVec3, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MultinomialMode,
+    PdfQuadrature,
 };
 use serde_json::{Map, Value};
 
@@ -50,14 +51,17 @@ pub struct MaterialSpec {
     pub multinomial: Option<String>,
     /// The footprint area Eq. 11 plans for; defaults to 10⁻⁶.
     pub expected_footprint_area: Option<f64>,
-    /// QMC points of the sampling pdf; defaults to 64.
+    /// The sampling pdf's rule over the cone: `"cubature"` (the default) or `"qmc"`.
+    pub pdf_quadrature: Option<String>,
+    /// QMC points of the sampling pdf (under `"qmc"`, and for cones the cubature does not
+    /// cover); defaults to 64.
     pub pdf_points: Option<f64>,
     /// Skip queries whose expected count is provably below this; defaults to 0.
     pub negligible_count: Option<f64>,
 }
 
 /// The fields a JSON material may hold.
-const KNOWN_FIELDS: [&str; 12] = [
+const KNOWN_FIELDS: [&str; 13] = [
     "distribution",
     "alpha",
     "alpha_y",
@@ -68,6 +72,7 @@ const KNOWN_FIELDS: [&str; 12] = [
     "fresnel",
     "multinomial",
     "expected_footprint_area",
+    "pdf_quadrature",
     "pdf_points",
     "negligible_count",
 ];
@@ -87,6 +92,7 @@ impl MaterialSpec {
             fresnel: FresnelSpec::None,
             multinomial: None,
             expected_footprint_area: None,
+            pdf_quadrature: None,
             pdf_points: None,
             negligible_count: None,
         }
@@ -174,6 +180,15 @@ impl MaterialSpec {
                 ));
             }
         };
+        parameters.pdf_quadrature = match self.pdf_quadrature.as_deref() {
+            None | Some("cubature") => PdfQuadrature::Cubature,
+            Some("qmc") => PdfQuadrature::QuasiMonteCarlo,
+            Some(other) => {
+                return Err(format!(
+                    "material.pdf_quadrature \"{other}\" is unknown: use \"cubature\" or \"qmc\""
+                ));
+            }
+        };
         parameters.fresnel = match self.fresnel {
             FresnelSpec::None => Fresnel::None,
             FresnelSpec::Conductor { eta, k } => Fresnel::Conductor {
@@ -217,6 +232,15 @@ impl MaterialSpec {
                 ));
             }
         };
+        let pdf_quadrature = match m.get("pdf_quadrature") {
+            None => None,
+            Some(Value::String(s)) => Some(s.clone()),
+            Some(other) => {
+                return Err(format!(
+                    "material.pdf_quadrature {other} is unknown: use \"cubature\" or \"qmc\""
+                ));
+            }
+        };
         Ok(Self {
             distribution,
             alpha: number(m, "alpha", "material.alpha")?,
@@ -232,6 +256,7 @@ impl MaterialSpec {
                 "expected_footprint_area",
                 "material.expected_footprint_area",
             )?,
+            pdf_quadrature,
             pdf_points: optional_number(m, "pdf_points", "material.pdf_points")?,
             negligible_count: optional_number(m, "negligible_count", "material.negligible_count")?,
         })

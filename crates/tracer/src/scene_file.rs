@@ -17,7 +17,7 @@ use std::sync::Arc;
 use glam::{DAffine3, DQuat, DVec2, DVec3};
 use glint_brdf::{
     DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MicrofacetBrdf,
-    MultinomialMode, NormalSampling,
+    MultinomialMode, NormalSampling, PdfQuadrature,
 };
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
@@ -293,6 +293,13 @@ enum MultinomialName {
     Normal,
 }
 
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum PdfQuadratureName {
+    Cubature,
+    Qmc,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct GlintSection {
@@ -309,6 +316,7 @@ struct GlintSection {
     #[serde(default)]
     coloured: bool,
     sampling_scale: Option<f64>,
+    pdf_quadrature: Option<PdfQuadratureName>,
     pdf_points: Option<usize>,
     expected_footprint_area: Option<f64>,
     negligible_count: Option<f64>,
@@ -921,6 +929,12 @@ impl Builder<'_> {
         parameters.colour_channels = if g.coloured { 3 } else { 0 };
         if let Some(s) = g.sampling_scale {
             parameters.sampling_scale = s;
+        }
+        if let Some(q) = g.pdf_quadrature {
+            parameters.pdf_quadrature = match q {
+                PdfQuadratureName::Cubature => PdfQuadrature::Cubature,
+                PdfQuadratureName::Qmc => PdfQuadrature::QuasiMonteCarlo,
+            };
         }
         if let Some(p) = g.pdf_points {
             parameters.pdf_points = p;
