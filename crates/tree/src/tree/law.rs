@@ -7,6 +7,7 @@
 
 use glint_sphere::{Classification, OverlapMethod, SphericalConic, overlap_solid_angle};
 
+use super::scratch::QueryMemo;
 use super::{CountTree, QueryScratch};
 use crate::footprint::Footprint;
 use crate::ndf::DirectionalCell;
@@ -103,20 +104,27 @@ impl CountTree {
         if footprint.is_degenerate() {
             return 0.0;
         }
-        let integral =
-            self.integral_over_conic_within(&DirectionalCell::HEMISPHERE, conic, method, cells);
+        let integral = self.integral_over_conic_within(
+            &DirectionalCell::HEMISPHERE,
+            conic,
+            method,
+            cells,
+            None,
+        );
         self.config.particles as f64 * footprint.area() * integral
             / self.quadrature.hemisphere_integral()
     }
 
     /// ∫ p over cell ∩ conic: descend the cells that have table entries; elsewhere take the
-    /// cell's integral times its overlap fraction (p near-uniform there).
+    /// cell's integral times its overlap fraction (p near-uniform there). Within a query, its
+    /// `memo` remembers the cells' classifications (the query's splits meet the same cells).
     pub(super) fn integral_over_conic_within(
         &self,
         start: &DirectionalCell,
         conic: &SphericalConic,
         method: OverlapMethod,
         stack: &mut Vec<DirectionalCell>,
+        mut memo: Option<&mut QueryMemo>,
     ) -> f64 {
         stack.clear();
         stack.push(*start);
@@ -127,7 +135,11 @@ impl CountTree {
                 stack.extend(cell.children());
                 continue;
             };
-            match conic.classify(&triangle) {
+            let classification = match memo.as_deref_mut() {
+                Some(memo) => memo.classify(&cell, conic),
+                None => conic.classify(&triangle),
+            };
+            match classification {
                 Classification::Disjoint => {}
                 Classification::TriangleInsideConic => {
                     total += self.quadrature.integral(&cell, density)

@@ -164,7 +164,15 @@ impl CountTree {
                 // once a query has proved long (the scale floor is active); before that the
                 // paper's condition decides, as in Alg. 1.
                 let mut expected_share = || {
-                    self.overlap_share(node, footprint, conic, spatial, directions_inside, cells)
+                    self.overlap_share(
+                        node,
+                        footprint,
+                        conic,
+                        spatial,
+                        directions_inside,
+                        cells,
+                        memo,
+                    )
                 };
                 // (A table look-up, so only asked when the threshold is positive.)
                 let cheap = || directions_inside || !self.quadrature.has_entry(&node.cell);
@@ -339,6 +347,38 @@ impl CountTree {
         }
     }
 
+    /// The share of `node`'s particles whose normals lie in the conic: the overlap's share of
+    /// the triangle where p is near-uniform (no table entry), else ∫p over the overlap by the
+    /// table divided by ∫p over the triangle.
+    fn directional_fraction(
+        &self,
+        node: &Node,
+        conic: &SphericalConic,
+        cells: &mut Vec<DirectionalCell>,
+        memo: &mut QueryMemo,
+    ) -> f64 {
+        if let (Some(t), false) = (&node.cell.triangle, self.quadrature.has_entry(&node.cell)) {
+            return overlap_solid_angle(t, conic, self.config.overlap) / node.solid_angle;
+        }
+        let inside = self.integral_over_conic_within(
+            &node.cell,
+            conic,
+            self.config.overlap,
+            cells,
+            Some(memo),
+        );
+        let total = self.quadrature.integral_with_solid_angle(
+            &node.cell,
+            node.solid_angle,
+            self.density.as_ref(),
+        );
+        if total > 0.0 {
+            (inside / total).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+
     /// The expected contribution per particle of `node` and the bound on its variance.
     fn overlap_share(
         &self,
@@ -348,6 +388,7 @@ impl CountTree {
         spatial: BoxOverlap,
         directions_inside: bool,
         cells: &mut Vec<DirectionalCell>,
+        memo: &mut QueryMemo,
     ) -> OverlapShare {
         let box_size = node.box_size();
         let multiplicity = if spatial.partial == 0 {
@@ -357,23 +398,10 @@ impl CountTree {
         };
         let directional = if directions_inside {
             1.0
-        } else if let (Some(t), false) =
-            (&node.cell.triangle, self.quadrature.has_entry(&node.cell))
-        {
-            overlap_solid_angle(t, conic, self.config.overlap) / node.solid_angle
         } else {
-            let inside =
-                self.integral_over_conic_within(&node.cell, conic, self.config.overlap, cells);
-            let total = self.quadrature.integral_with_solid_angle(
-                &node.cell,
-                node.solid_angle,
-                self.density.as_ref(),
-            );
-            if total > 0.0 {
-                (inside / total).clamp(0.0, 1.0)
-            } else {
-                0.0
-            }
+            memo.directional_fraction(&node.cell, |memo| {
+                self.directional_fraction(node, conic, cells, memo)
+            })
         };
         // A particle contributes m(x)·[normal in the conic]: m ∈ [inside, inside + partial] has
         // mean m̄ and (Bhatia–Davis) variance ≤ (m̄ − inside)(inside + partial − m̄); with the

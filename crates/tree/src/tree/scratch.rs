@@ -48,6 +48,7 @@ impl QueryScratch {
 #[derive(Debug, Default)]
 pub(super) struct QueryMemo {
     classifications: Vec<ClassificationEntry>,
+    fractions: Vec<FractionEntry>,
     boxes: Vec<BoxEntry>,
     generation: u32,
     splits: Vec<SplitEntry>,
@@ -69,6 +70,15 @@ struct ClassificationEntry {
     answer: Classification,
 }
 
+/// A cell's label and the share of the particles' normals in the cell that lie in the query's
+/// conic (Eq. 10's directional fraction).
+#[derive(Clone, Copy, Debug)]
+struct FractionEntry {
+    label: u64,
+    generation: u32,
+    fraction: f64,
+}
+
 /// A box (its corner's bits and its level) and how the query's footprint meets it.
 #[derive(Clone, Copy, Debug)]
 struct BoxEntry {
@@ -78,9 +88,10 @@ struct BoxEntry {
     answer: BoxOverlap,
 }
 
-/// log₂ of the entries of the classification table (512, 8 KB) and the box table (256,
-/// 10 KB).
+/// log₂ of the entries of the classification table (512, 8 KB), the fraction table (256,
+/// 6 KB) and the box table (256, 10 KB).
 const CLASSIFICATION_MEMO_BITS: u32 = 9;
+const FRACTION_MEMO_BITS: u32 = 8;
 const BOX_MEMO_BITS: u32 = 8;
 
 /// log₂ of the entries of the split table (1024, 48 KB).
@@ -97,6 +108,11 @@ impl QueryMemo {
         label: 0,
         generation: 0,
         answer: Classification::Partial,
+    };
+    const NO_FRACTION: FractionEntry = FractionEntry {
+        label: 0,
+        generation: 0,
+        fraction: 0.0,
     };
     const NO_BOX: BoxEntry = BoxEntry {
         corner: [0; 2],
@@ -118,6 +134,7 @@ impl QueryMemo {
     pub(super) fn begin_query(&mut self) {
         if self.classifications.is_empty() {
             self.classifications = vec![Self::NO_CLASSIFICATION; 1 << CLASSIFICATION_MEMO_BITS];
+            self.fractions = vec![Self::NO_FRACTION; 1 << FRACTION_MEMO_BITS];
             self.boxes = vec![Self::NO_BOX; 1 << BOX_MEMO_BITS];
             self.splits = vec![Self::NO_SPLIT; 1 << SPLIT_MEMO_BITS];
         }
@@ -125,6 +142,7 @@ impl QueryMemo {
         if self.generation == 0 {
             // After 2³² queries: entries of generation 0 are never current.
             self.classifications.fill(Self::NO_CLASSIFICATION);
+            self.fractions.fill(Self::NO_FRACTION);
             self.boxes.fill(Self::NO_BOX);
             self.generation = 1;
         }
@@ -156,6 +174,33 @@ impl QueryMemo {
             answer,
         };
         answer
+    }
+
+    /// The share of the normals in `cell` that lie in the query's conic, from `compute`: the
+    /// memoized answer if this query has computed it for the cell before (the children of a
+    /// spatial split share their parent's cell, and so its fraction).
+    #[inline]
+    pub(super) fn directional_fraction(
+        &mut self,
+        cell: &DirectionalCell,
+        compute: impl FnOnce(&mut Self) -> f64,
+    ) -> f64 {
+        // Labels name cells uniquely to this depth (deeper ones share a saturated label).
+        if cell.depth >= DirectionalCell::MAX_LABELLED_DEPTH {
+            return compute(self);
+        }
+        let slot = memo_slot(cell.label, FRACTION_MEMO_BITS);
+        let entry = self.fractions[slot];
+        if entry.generation == self.generation && entry.label == cell.label {
+            return entry.fraction;
+        }
+        let fraction = compute(self);
+        self.fractions[slot] = FractionEntry {
+            label: cell.label,
+            generation: self.generation,
+            fraction,
+        };
+        fraction
     }
 
     /// How the query's `footprint` meets the box at `box_min` of side 2^−`box_level`: the
