@@ -164,15 +164,14 @@ impl CountTree {
                 // once a query has proved long (the scale floor is active); before that the
                 // paper's condition decides, as in Alg. 1.
                 let mut expected_share = || {
-                    self.overlap_share(
-                        node,
-                        footprint,
-                        conic,
-                        spatial,
-                        directions_inside,
-                        cells,
-                        memo,
-                    )
+                    let directional = if directions_inside {
+                        1.0
+                    } else {
+                        memo.directional_fraction(&node.cell, |memo| {
+                            self.directional_fraction(node, conic, cells, memo)
+                        })
+                    };
+                    self.overlap_share(node, footprint, spatial, directional)
                 };
                 // (A table look-up, so only asked when the threshold is positive.)
                 let cheap = || directions_inside || !self.quadrature.has_entry(&node.cell);
@@ -379,29 +378,20 @@ impl CountTree {
         }
     }
 
-    /// The expected contribution per particle of `node` and the bound on its variance.
+    /// The expected contribution per particle of `node` and the bound on its variance, given
+    /// the share `directional` of its normals in the conic.
     fn overlap_share(
         &self,
         node: &Node,
         footprint: &Footprint,
-        conic: &SphericalConic,
         spatial: BoxOverlap,
-        directions_inside: bool,
-        cells: &mut Vec<DirectionalCell>,
-        memo: &mut QueryMemo,
+        directional: f64,
     ) -> OverlapShare {
         let box_size = node.box_size();
         let multiplicity = if spatial.partial == 0 {
             spatial.inside as f64
         } else {
             footprint.overlap_area(node.box_min, box_size) / (box_size * box_size)
-        };
-        let directional = if directions_inside {
-            1.0
-        } else {
-            memo.directional_fraction(&node.cell, |memo| {
-                self.directional_fraction(node, conic, cells, memo)
-            })
         };
         // A particle contributes m(x)·[normal in the conic]: m ∈ [inside, inside + partial] has
         // mean m̄ and (Bhatia–Davis) variance ≤ (m̄ − inside)(inside + partial − m̄); with the
