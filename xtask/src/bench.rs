@@ -109,12 +109,8 @@ fn workspace_root() -> PathBuf {
 
 pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result<()> {
     if renders_only {
-        let mut table = String::new();
-        render_timings(quick, &mut table)?;
-        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-        let path = out.join("renders.md");
-        std::fs::write(&path, &table).with_context(|| format!("writing {}", path.display()))?;
-        println!("{table}\n{}", path.display());
+        let table = crate::bench_frames::run(quick, out)?;
+        println!("{table}\n{}", out.join("frames.md").display());
         return Ok(());
     }
     let root = workspace_root();
@@ -200,7 +196,11 @@ pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result
             median("brdf", &format!("eval_{}", setting.name))? / 1000.0
         )?;
     }
-    render_timings(quick, &mut table)?;
+    writeln!(
+        table,
+        "\n## What a frame pays for glints\n{}",
+        crate::bench_frames::run(quick, out)?
+    )?;
     scene_table(quick, out, &mut table)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("summary.md");
@@ -213,75 +213,6 @@ pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result
     std::fs::write(&path, header + &table)
         .with_context(|| format!("writing {}", path.display()))?;
     println!("\n{table}\nsummary: {}", path.display());
-    Ok(())
-}
-
-/// The default scene rendered with glints and with `--smooth` at equal samples, on one thread
-/// and on all: wall-clock time, rays per second, the Table 1 query statistics and the
-/// glint/smooth time ratio, all measured in this one run.
-fn render_timings(quick: bool, table: &mut String) -> anyhow::Result<()> {
-    let scene_path = crate::render::default_scene();
-    let glint = glint_tracer::scene_file::load_scene(&scene_path)?;
-    let mut traversed = glint_tracer::scene_file::load_scene(&scene_path)?;
-    traversed.set_negligible_count(0.0)?;
-    let mut smooth = glint_tracer::scene_file::load_scene(&scene_path)?;
-    smooth.make_smooth();
-    let mut settings = glint.settings;
-    if quick {
-        settings.width /= 2;
-        settings.height /= 2;
-    }
-    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let mut thread_counts = vec![1];
-    if all > 1 {
-        thread_counts.push(all);
-    }
-    writeln!(
-        table,
-        "\n## Renders: the default scene ({}, {}x{}, {} spp)\n\n\
-         | threads | material | seconds | Mrays/s | glint queries | nodes per traversed query | particles per query | queries/s | glint / smooth time |\n\
-         |---|---|---|---|---|---|---|---|---|",
-        scene_path
-            .file_name()
-            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-        settings.width,
-        settings.height,
-        settings.samples_per_pixel
-    )?;
-    for threads in thread_counts {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()?;
-        let run = |scene: &glint_tracer::Scene| {
-            pool.install(|| glint_tracer::render(scene, &settings, 0.0, &|_, _| {}))
-                .map(|output| output.statistics)
-        };
-        let glint_stats = run(&glint)?;
-        let traversed_stats = run(&traversed)?;
-        let smooth_stats = run(&smooth)?;
-        for (name, s) in [
-            ("glint", &glint_stats),
-            ("glint, every query traversed", &traversed_stats),
-            ("smooth", &smooth_stats),
-        ] {
-            writeln!(
-                table,
-                "| {threads} | {name} | {:.2} | {:.3} | {} ({} skipped) | {:.1} | {:.3} | {:.0} | {} |",
-                s.seconds,
-                s.rays_per_second() * 1e-6,
-                s.glint.queries,
-                s.glint.negligible_queries,
-                s.nodes_per_query(),
-                s.particles_per_query(),
-                s.queries_per_second(),
-                if s.glint.queries > 0 {
-                    format!("{:.2}×", s.seconds / smooth_stats.seconds)
-                } else {
-                    String::new()
-                }
-            )?;
-        }
-    }
     Ok(())
 }
 

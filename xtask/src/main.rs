@@ -13,11 +13,13 @@
 //!   `target/validate/`; exits non-zero when any check fails.
 //! - `cargo xtask eval [FILE]`: the model as JSON Lines (specified in `docs/eval.md`), from FILE or
 //!   stdin.
-//! - `cargo xtask bench [--quick]`: runs the criterion benchmarks and writes the per-call table
-//!   that `docs/performance.md` quotes to `target/bench/summary.md`.
+//! - `cargo xtask bench [--quick] [--renders-only]`: runs the criterion benchmarks and writes the
+//!   per-call table that `docs/performance.md` quotes to `target/bench/summary.md`, and what a
+//!   frame of every scene pays for glints (also written into `docs/performance.md`).
 
 mod assets;
 mod bench;
+mod bench_frames;
 mod eval;
 mod plot;
 mod render;
@@ -72,7 +74,9 @@ enum Command {
         /// Shorter measurement times (noisier figures).
         #[arg(long)]
         quick: bool,
-        /// Only the render timings (no criterion benchmarks); written to renders.md.
+        /// Only what a frame pays for glints (every scene, glint against smooth, and the
+        /// profile's breakdown; no criterion benchmarks): written to frames.md and
+        /// docs/performance.md.
         #[arg(long)]
         renders_only: bool,
         /// Where to write the summary (default: target/bench).
