@@ -143,7 +143,7 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
             let mut parameters =
                 GlintParameters::new(Microfacet::new(kind, 0.15, 0.15).expect("valid roughness"));
             parameters.gamma = 3f64.to_radians();
-            // The default pdf (the 7-point cubature) for Beckmann, the paper's QMC rule with
+            // The default pdf (the 7-point cubature here) for Beckmann, the paper's QMC rule with
             // many points for GGX.
             if kind == DistributionKind::Ggx {
                 parameters.pdf_quadrature = PdfQuadrature::QuasiMonteCarlo;

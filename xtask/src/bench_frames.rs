@@ -24,7 +24,11 @@ const PAIRS: usize = 3;
 const PARTS: [(&str, &[&str]); 6] = [
     (
         "negligible bound",
-        &["negligible::", "particle_density_bound", "expected_count_bound"],
+        &[
+            "negligible::",
+            "particle_density_bound",
+            "expected_count_bound",
+        ],
     ),
     (
         "overlap areas (Eq. 10's early stop)",
@@ -40,12 +44,19 @@ const PARTS: [(&str, &[&str]); 6] = [
     ("sampling pdf", &["GlintSampler::pdf", "sampling_pdf"]),
     (
         "glint sampling",
-        &["GlintSampler::sample_direction", "DiscreteBrdf::sample_direction"],
+        &[
+            "GlintSampler::sample_direction",
+            "DiscreteBrdf::sample_direction",
+        ],
     ),
     ("tree query (Alg. 1)", &["glint_tree::"]),
     (
         "f̂ around the query (conic, Fresnel, Eq. 5)",
-        &["DiscreteBrdf::query", "GlintMaterial::eval", "glint_brdf::glint::"],
+        &[
+            "DiscreteBrdf::query",
+            "GlintMaterial::eval",
+            "glint_brdf::glint::",
+        ],
     ),
 ];
 
@@ -143,7 +154,15 @@ fn profile(path: &Path, settings: &RenderSettings, out: &Path) -> Option<Vec<f64
     let exe = std::env::current_exe().ok()?;
     let data = out.join("perf.data");
     let status = Command::new("perf")
-        .args(["record", "-q", "-F", "250", "--call-graph", "dwarf,16384", "-o"])
+        .args([
+            "record",
+            "-q",
+            "-F",
+            "250",
+            "--call-graph",
+            "dwarf,16384",
+            "-o",
+        ])
         .arg(&data)
         .arg("--")
         .arg(&exe)
@@ -215,14 +234,10 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<String> {
     let path = out.join("frames.md");
     std::fs::write(&path, &tables).with_context(|| format!("writing {}", path.display()))?;
     let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/performance.md");
-    let text = std::fs::read_to_string(&docs)
-        .with_context(|| format!("reading {}", docs.display()))?;
+    let text =
+        std::fs::read_to_string(&docs).with_context(|| format!("reading {}", docs.display()))?;
     if let (Some(begin), Some(end)) = (text.find(TABLE_BEGIN), text.find(TABLE_END)) {
-        let updated = format!(
-            "{}{TABLE_BEGIN}\n{tables}{}",
-            &text[..begin],
-            &text[end..]
-        );
+        let updated = format!("{}{TABLE_BEGIN}\n{tables}{}", &text[..begin], &text[end..]);
         std::fs::write(&docs, updated).with_context(|| format!("writing {}", docs.display()))?;
         println!("updated {}", docs.display());
     }
@@ -247,7 +262,10 @@ fn tables(
         for (threads, glint, smooth, ratio, statistics) in &cost.runs {
             let traversed = statistics.glint.traversed_queries();
             let added = if traversed > 0 {
-                format!("{:.2} µs", (glint - smooth) * 1e6 / traversed as f64 * *threads as f64)
+                format!(
+                    "{:.2} µs",
+                    (glint - smooth) * 1e6 / traversed as f64 * *threads as f64
+                )
             } else {
                 "—".to_owned()
             };
@@ -281,8 +299,7 @@ fn tables(
         }
         table.push('\n');
         for (cost, shares) in costs.iter().zip(profiles) {
-            let (Some(shares), Some((_, glint, smooth, _, _))) = (shares, cost.runs.first())
-            else {
+            let (Some(shares), Some((_, glint, smooth, _, _))) = (shares, cost.runs.first()) else {
                 continue;
             };
             write!(table, "| {} |", cost.name)?;

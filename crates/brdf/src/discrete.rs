@@ -70,7 +70,7 @@ use crate::smooth::{MicrofacetBrdf, above_horizon};
 /// | `multinomial` | exact splits or the paper's normal approximation | exact |
 /// | `colour_channels` | 0, or 3 for Dirichlet-coloured flakes (Fig. 8) | 0 |
 /// | `sampling_scale` | α_s/α of the sampler (Sec. 3.4) | 2 |
-/// | `pdf_quadrature` | the sampling pdf's rule over the cone | 7-point cubature |
+/// | `pdf_quadrature` | the sampling pdf's rule over the cone | cubature (7 or 32 points) |
 /// | `pdf_points` | QMC points of the sampling pdf, when `pdf_quadrature` is QMC | 64 |
 /// | `expected_footprint_area` | the footprint area Eq. 11 plans for | 10⁻⁶ |
 /// | `negligible_count` | skip queries whose expected count is below this | 0 (off) |
@@ -95,7 +95,7 @@ pub struct GlintParameters {
     pub colour_channels: usize,
     /// α_s / α of the sampling distribution (the paper: 2).
     pub sampling_scale: f64,
-    /// How the sampling pdf integrates over the cone: a 7-point cubature (default) or the
+    /// How the sampling pdf integrates over the cone: cubature rules (default) or the
     /// paper's QMC over `pdf_points` points.
     pub pdf_quadrature: PdfQuadrature,
     /// QMC points of the sampling pdf when `pdf_quadrature` is QMC (the paper: 64).
@@ -109,7 +109,7 @@ pub struct GlintParameters {
 
 impl GlintParameters {
     /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, seed 0, F = 1,
-    /// exact multinomials, no colour, α_s = 2α, the 7-point cubature for the sampling pdf
+    /// exact multinomials, no colour, α_s = 2α, cubature rules for the sampling pdf
     /// (64 QMC points when switched to QMC), footprints of 10⁻⁶, every
     /// query traversed (no negligible-query test).
     #[must_use]

@@ -98,8 +98,8 @@ enum GlintPdfQuadrature
 #endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
  {
   /**
-   * A 7-point cubature exact to degree 5, for cones up to γ = 0.35 α_s above the horizon
-   * (quasi-Monte Carlo elsewhere).
+   * Cubature rules: 7 points exact to degree 5 for cones up to γ = 0.35 α_s, a 32-point
+   * polar Gauss rule for wider ones (quasi-Monte Carlo for cones across the horizon).
    */
   GLINT_PDF_CUBATURE = 0,
   /**

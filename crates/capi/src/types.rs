@@ -70,8 +70,8 @@ pub enum GlintMultinomial {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[allow(non_camel_case_types)]
 pub enum GlintPdfQuadrature {
-    /// A 7-point cubature exact to degree 5, for cones up to γ = 0.35 α_s above the horizon
-    /// (quasi-Monte Carlo elsewhere).
+    /// Cubature rules: 7 points exact to degree 5 for cones up to γ = 0.35 α_s, a 32-point
+    /// polar Gauss rule for wider ones (quasi-Monte Carlo for cones across the horizon).
     GLINT_PDF_CUBATURE = 0,
     /// The paper's quasi-Monte Carlo rule over `pdf_points` points.
     GLINT_PDF_QMC = 1,
