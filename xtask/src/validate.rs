@@ -123,6 +123,10 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
             Box::new(|r| crate::validate_trade::trade(quick, out, r)),
         ),
         (
+            "trade: pdf quadrature",
+            Box::new(|r| crate::validate_pdf::pdf_quadrature(quick, r)),
+        ),
+        (
             "renders",
             Box::new(|r| crate::validate_render::renders(quick, r)),
         ),
