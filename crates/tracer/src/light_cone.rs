@@ -20,8 +20,10 @@
 //! [`glint_brdf::GlintBxdf::evaluate_in_cone`] (the cos θ_c there and here cancel: using the
 //! centre's cosine is exact, not an approximation). What is approximate is F·G·(ω_i·m)/(m·n)
 //! held at h_c over the light's conic: a relative error of the order of θ_l times its
-//! logarithmic derivative (measured in this module's tests: below 0.3% for θ_l ≤ 5° away from
-//! grazing). There is no light-sampling noise and no γ blur; γ plays no role for these lights.
+//! logarithmic derivative times the shift of p's centroid over the conic (measured by
+//! `cargo xtask validate`: +1.1% in the image mean at θ_l = 2.9°, Beckmann α = 0.1,
+//! N = 10¹² against the smooth render). There is no light-sampling noise and no γ blur; γ
+//! plays no role for these lights.
 //!
 //! # Visibility
 //! One shadow ray toward a direction uniform in Ω_l gives V ∈ {0, 1}, and the estimate is
@@ -164,7 +166,7 @@ impl ConeVertex {
             .map(|(i, _)| i)
     }
 
-    fn to_local(&self, w: DVec3) -> DVec3 {
+    fn to_local(self, w: DVec3) -> DVec3 {
         DVec3::new(
             w.dot(self.frame[0]),
             w.dot(self.frame[1]),
@@ -316,7 +318,7 @@ pub fn test_scene_text(radius: f64, gamma_degrees: f64, wall: bool, side: u32, s
         r#"
 [materials.wall]
 type = "diffuse"
-albedo = 0.0
+colour = [0.0, 0.0, 0.0]
 [[shapes]]
 type = "rectangle"
 center = [0.15, 0.9, -2.2]
