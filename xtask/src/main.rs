@@ -27,6 +27,7 @@ mod scenes;
 mod validate;
 mod validate_brdf;
 mod validate_counts;
+mod validate_light_cones;
 mod validate_pdf;
 mod validate_render;
 mod validate_stability;

@@ -1,5 +1,5 @@
 //! `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--out DIR] [--frames A..B]
-//! [--smooth] [--threads N]`: renders a scene file to linear EXR, tone-mapped PNG and a JSON
+//! [--smooth] [--glint-light-cones] [--threads N]`: renders a scene file to linear EXR, tone-mapped PNG and a JSON
 //! file of Table-1 statistics, with a progress bar.
 
 use std::path::{Path, PathBuf};
@@ -50,6 +50,10 @@ pub(crate) struct RenderArgs {
     /// file says otherwise).
     #[arg(long, value_name = "COUNT")]
     pub(crate) negligible_count: Option<f64>,
+    /// Shade sphere lights at glint hits by one query in the light's own cone (the scene's
+    /// `glint_light_cones = true`; see scenes/README.md).
+    #[arg(long)]
+    pub(crate) glint_light_cones: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
@@ -208,6 +212,9 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         settings.glint_randomness = glint_tracer::GlintRandomness::PerFrame;
     }
     let base_materials = scene.materials.clone();
+    if args.glint_light_cones {
+        settings.glint_light_cones = true;
+    }
     if let Some(spp) = args.spp {
         settings.samples_per_pixel = spp;
     }

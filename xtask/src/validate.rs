@@ -130,6 +130,10 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
             "renders",
             Box::new(|r| crate::validate_render::renders(quick, r)),
         ),
+        (
+            "light cones",
+            Box::new(|r| crate::validate_light_cones::light_cones(quick, r)),
+        ),
     ];
     // indicatif hides the bar when the output is not a terminal.
     let bar = indicatif::ProgressBar::new(suites.len() as u64);

@@ -327,6 +327,35 @@ impl DiscreteBrdf {
         SphericalConic::with_cone(wi, wo, &self.cone).ok()
     }
 
+    /// The conic of normals reflecting ω_i into the cone of half-angle `cone` around `axis`:
+    /// [`DiscreteBrdf::conic`] with another cone than the material's γ (for light cones, see
+    /// [`GlintBxdf::evaluate_in_cone`]). `None` unless both directions are above the horizon.
+    pub(crate) fn conic_in_cone(
+        &self,
+        wi: DVec3,
+        axis: DVec3,
+        cone: &ConeRadius,
+    ) -> Option<SphericalConic> {
+        if !(above_horizon(wi) && above_horizon(axis)) {
+            return None;
+        }
+        SphericalConic::with_cone(wi, axis, cone).ok()
+    }
+
+    /// f̂ of the corrected Eq. 5 for a cone of solid angle `solid_angle` instead of the
+    /// material's σ(Ω_o): the material's f̂ times σ(Ω_o)/`solid_angle` (exactly f̂ when the two
+    /// are equal, as x·(σ/σ) = x·1 in floating point).
+    pub(crate) fn f_hat_in_cone(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        d_hat: DVec3,
+        area: f64,
+        solid_angle: f64,
+    ) -> DVec3 {
+        self.f_hat_from_d_hat(wi, wo, d_hat, area) * (self.cone_solid_angle / solid_angle)
+    }
+
     /// λ̄ of the negligible-query test for a footprint and conic; infinite when the material
     /// skips nothing (`negligible_count` = 0) or the conic is hyperbolic.
     pub(crate) fn expected_count_bound(

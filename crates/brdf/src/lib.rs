@@ -9,7 +9,8 @@
 //!
 //! - [`DiscreteBrdf`]: the glint material. [`DiscreteBrdf::at`] binds it to a shading point's
 //!   [`Footprint`] and a per-thread [`QueryScratch`], giving a [`GlintBxdf`] whose [`Bxdf`]
-//!   methods are the glint model; [`GlintBxdf::evaluate`] adds the query's statistics.
+//!   methods are the glint model; [`GlintBxdf::evaluate`] adds the query's statistics, and
+//!   [`GlintBxdf::evaluate_in_cone`] evaluates it with another cone (a sphere light's own).
 //!   [`DiscreteBrdf::smooth`] is the smooth limit.
 //! - [`Bxdf`]: the pbrt-v4-style interface (`eval`, `sample` from uniform numbers, `pdf`).
 //! - [`MicrofacetBrdf`]: the smooth model, Eq. 3.

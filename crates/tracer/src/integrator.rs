@@ -11,6 +11,7 @@ use glint_brdf::QueryScratch;
 
 use crate::accel::PrimitiveHit;
 use crate::camera::{RayDifferential, texture_footprint};
+use crate::light_cone::ConeVertex;
 use crate::material::{GlintCounters, ShadingContext};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
@@ -113,6 +114,9 @@ pub struct RenderSettings {
     pub glint_randomness: GlintRandomness,
     /// Bloom on the PNG, if any.
     pub bloom: Option<Bloom>,
+    /// Sphere lights at glint hits with a footprint are shaded by one query in the light's own
+    /// cone instead of light samples through the material's γ (see [`crate::light_cone`]).
+    pub glint_light_cones: bool,
 }
 
 impl Default for RenderSettings {
@@ -132,6 +136,7 @@ impl Default for RenderSettings {
             roulette_depth: 3,
             glint_randomness: GlintRandomness::Coherent,
             bloom: None,
+            glint_light_cones: false,
         }
     }
 }
@@ -204,7 +209,7 @@ fn counters_of(counters: &mut Vec<GlintCounters>, index: usize) -> &mut GlintCou
 }
 
 /// A ray origin on the side of the surface that `direction` leaves by.
-fn offset_origin(point: DVec3, normal: DVec3, direction: DVec3) -> DVec3 {
+pub(crate) fn offset_origin(point: DVec3, normal: DVec3, direction: DVec3) -> DVec3 {
     let eps = 1e-9 * (1.0 + point.abs().max_element());
     if direction.dot(normal) >= 0.0 {
         point + eps * normal
@@ -224,7 +229,13 @@ struct EmissionWeighting {
 impl EmissionWeighting {
     /// Whether a BRDF-sampled `ray` that hit `hit` (or escaped) would add any emission: a
     /// cheap test before the BRDF's pdf and value are computed.
-    fn finds_emission(&self, scene: &Scene, ray: &Ray, hit: Option<&PrimitiveHit>) -> bool {
+    fn finds_emission(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        hit: Option<&PrimitiveHit>,
+        cones: Option<&ConeVertex>,
+    ) -> bool {
         if !self.use_brdf_hits {
             return false;
         }
@@ -233,7 +244,9 @@ impl EmissionWeighting {
             Some(hit) => scene.accelerator.primitives()[hit.primitive]
                 .light
                 .is_some_and(|i| {
-                    scene.lights[i as usize].emitted(ray.direction, hit.surface.uv) != DVec3::ZERO
+                    let light = &scene.lights[i as usize];
+                    cones.is_none_or(|c| c.cone(light).is_none())
+                        && light.emitted(ray.direction, hit.surface.uv) != DVec3::ZERO
                 }),
         }
     }
@@ -242,12 +255,15 @@ impl EmissionWeighting {
     /// escapes, from the environment. `previous` is the BRDF density and origin of the sample
     /// that produced the ray (`None` for camera rays, which see emission unweighted); such
     /// emission is MIS-weighted against light sampling, or dropped under light-only sampling.
+    /// `cones`: the previous vertex's light cones, whose lights BRDF rays do not count again
+    /// and which leave the other lights a larger selection probability.
     fn emitted_along(
         &self,
         scene: &Scene,
         ray: &Ray,
         hit: Option<&PrimitiveHit>,
         previous: Option<(f64, DVec3)>,
+        cones: Option<&ConeVertex>,
     ) -> DVec3 {
         let (le, pdf_light) = match hit {
             None => {
@@ -267,6 +283,9 @@ impl EmissionWeighting {
                     return DVec3::ZERO;
                 };
                 let light = &scene.lights[index as usize];
+                if previous.is_some() && cones.is_some_and(|c| c.cone(light).is_some()) {
+                    return DVec3::ZERO;
+                }
                 let le = light.emitted(ray.direction, hit.surface.uv);
                 (
                     le,
@@ -282,7 +301,8 @@ impl EmissionWeighting {
                 if !self.use_brdf_hits {
                     DVec3::ZERO
                 } else if self.use_light_sampling {
-                    le * power_heuristic(pdf_brdf, pdf_light * self.light_pick)
+                    let pick = cones.map_or(self.light_pick, |c| c.pick_probability(&scene.lights));
+                    le * power_heuristic(pdf_brdf, pdf_light * pick)
                 } else {
                     le
                 }
@@ -324,11 +344,14 @@ pub fn radiance(
     let mut ray = camera_ray.ray;
     // The density and origin of the BRDF sample that produced `ray` (None for camera rays).
     let mut previous: Option<(f64, DVec3)> = None;
+    // The light cones of the vertex that produced `ray`, if any.
+    let mut previous_cones: Option<ConeVertex> = None;
     let mut depth = 0u32;
     loop {
         state.rays += 1;
         let hit = scene.intersect(&ray, f64::INFINITY);
-        radiance += throughput * weighting.emitted_along(scene, &ray, hit.as_ref(), previous);
+        radiance += throughput
+            * weighting.emitted_along(scene, &ray, hit.as_ref(), previous, previous_cones.as_ref());
         let Some(hit) = hit else {
             break;
         };
@@ -366,12 +389,35 @@ pub fn radiance(
             scratch: &mut state.scratch,
             counters: counters_of(&mut state.counters, primitive.material as usize),
         };
-        // Next-event estimation: one light, chosen uniformly.
+        // Next-event estimation: one light, chosen uniformly (among the lights without a cone
+        // when light cones shade the others).
         let u_pick = sampler.next_1d();
         let u_light = sampler.next_2d();
-        if use_light_sampling && light_count > 0 {
-            let light =
-                &scene.lights[((u_pick * light_count as f64) as usize).min(light_count - 1)];
+        let cones = ConeVertex::at(
+            settings,
+            material,
+            ctx.footprint.is_some(),
+            surface.point,
+            [frame.t, frame.b, frame.n],
+            geometric_normal,
+        );
+        let picked = match &cones {
+            Some(cones) => {
+                radiance += throughput
+                    * cones.direct(scene, material, wi, &mut ctx, u_light, &mut state.rays);
+                cones
+                    .pick(&scene.lights, u_pick)
+                    .map(|i| (i, cones.pick_probability(&scene.lights)))
+            }
+            None => (light_count > 0).then(|| {
+                (
+                    ((u_pick * light_count as f64) as usize).min(light_count - 1),
+                    light_pick,
+                )
+            }),
+        };
+        if let (true, Some((light_index, light_pick))) = (use_light_sampling, picked) {
+            let light = &scene.lights[light_index];
             if let Some(sample) = light.sample(surface.point, u_light) {
                 let wo = frame.to_local(sample.direction);
                 let same_side = sample.direction.dot(geometric_normal) > 0.0;
@@ -424,11 +470,17 @@ pub fn radiance(
             // convolution for glints) and f (a tree query) are computed only when there is some.
             state.rays += 1;
             let next = scene.intersect(&ray, f64::INFINITY);
-            if weighting.finds_emission(scene, &ray, next.as_ref()) {
+            if weighting.finds_emission(scene, &ray, next.as_ref(), cones.as_ref()) {
                 let pdf = material.pdf(wi, wo, surface.uv);
                 if pdf > 0.0 && pdf.is_finite() {
                     let previous = Some((pdf, surface.point));
-                    let le = weighting.emitted_along(scene, &ray, next.as_ref(), previous);
+                    let le = weighting.emitted_along(
+                        scene,
+                        &ray,
+                        next.as_ref(),
+                        previous,
+                        cones.as_ref(),
+                    );
                     let f = material.eval(wi, wo, &mut ctx);
                     radiance += throughput * f * le * (wo.z / pdf);
                 }
@@ -440,6 +492,7 @@ pub fn radiance(
             break;
         }
         previous = Some((pdf, surface.point));
+        previous_cones = cones;
         let f = material.eval(wi, wo, &mut ctx);
         throughput *= f * (wo.z / pdf);
         if !throughput.is_finite() {

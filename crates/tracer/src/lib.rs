@@ -78,6 +78,7 @@ mod fuzz;
 pub mod image;
 pub mod integrator;
 pub mod light;
+pub mod light_cone;
 pub mod limits;
 pub mod material;
 pub mod mesh;

@@ -145,6 +145,18 @@ impl GlintCounters {
         self.negligible_bound += other.negligible_bound;
     }
 
+    /// Counts one query and what it found.
+    fn record(&mut self, result: &glint_brdf::GlintEvaluation) {
+        self.queries += 1;
+        self.nodes_visited += u64::from(result.nodes_visited);
+        self.nodes_overlapping += u64::from(result.nodes_overlapping);
+        self.particles_found += result.count;
+        if let Some(bound) = result.negligible {
+            self.negligible_queries += 1;
+            self.negligible_bound += bound;
+        }
+    }
+
     /// Queries that traversed the tree (not skipped as negligible).
     #[must_use]
     pub fn traversed_queries(&self) -> u64 {
@@ -226,14 +238,32 @@ impl GlintMaterial {
             return self.brdf.smooth().eval(wi, wo);
         };
         let result = self.brdf.at(&footprint, ctx.scratch).evaluate(wi, wo);
-        ctx.counters.queries += 1;
-        ctx.counters.nodes_visited += u64::from(result.nodes_visited);
-        ctx.counters.nodes_overlapping += u64::from(result.nodes_overlapping);
-        ctx.counters.particles_found += result.count;
-        if let Some(bound) = result.negligible {
-            ctx.counters.negligible_queries += 1;
-            ctx.counters.negligible_bound += bound;
-        }
+        ctx.counters.record(&result);
+        result.f_hat
+    }
+
+    /// f̂ for the cone of half-angle `half_angle` around `axis` (local) with the context's
+    /// footprint (counting the query): [`glint_brdf::GlintBxdf::evaluate_in_cone`]. Zero
+    /// without a valid footprint (light cones apply only where there is one).
+    pub fn evaluate_in_cone(
+        &self,
+        wi: DVec3,
+        axis: DVec3,
+        half_angle: f64,
+        ctx: &mut ShadingContext<'_>,
+    ) -> DVec3 {
+        let Some((dx, dy)) = ctx.footprint else {
+            return DVec3::ZERO;
+        };
+        let s = self.uv_scale;
+        let Ok(footprint) = Footprint::new(ctx.uv * s, dx * s, dy * s) else {
+            return DVec3::ZERO;
+        };
+        let result = self
+            .brdf
+            .at(&footprint, ctx.scratch)
+            .evaluate_in_cone(wi, axis, half_angle);
+        ctx.counters.record(&result);
         result.f_hat
     }
 }

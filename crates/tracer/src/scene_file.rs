@@ -148,6 +148,7 @@ struct RenderSection {
     roulette_depth: Option<u32>,
     glint_randomness: Option<RandomnessName>,
     bloom: Option<BloomSection>,
+    glint_light_cones: Option<bool>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize)]
@@ -1175,6 +1176,9 @@ impl Builder<'_> {
                 RandomnessName::Coherent => GlintRandomness::Coherent,
                 RandomnessName::PerFrame => GlintRandomness::PerFrame,
             };
+        }
+        if let Some(cones) = r.glint_light_cones {
+            s.glint_light_cones = cones;
         }
         if let Some(b) = r.bloom {
             if !(b.threshold >= 0.0 && b.threshold.is_finite()) {
