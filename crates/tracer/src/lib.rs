@@ -11,8 +11,10 @@
 //! - [`camera`]: a perspective camera with ray differentials (Igehy 1999) and keyframed motion;
 //!   [`camera::texture_footprint`] turns a hit's differentials into the footprint parallelogram
 //!   of Sec. 3.1 ("Usage in a rendering system").
-//! - [`material`]: diffuse, smooth conductor, plastic, the glint material and linear
-//!   combinations; [`light`]: sphere, rectangle (optionally textured), directional and
+//! - [`differentials`]: ray differentials reflected at perfect mirrors, so glints seen in
+//!   mirrors keep their footprint under `glint_footprints = "all"`.
+//! - [`material`]: diffuse, smooth conductor, plastic, the glint material, the perfect mirror
+//!   and linear combinations; [`light`]: sphere, rectangle (optionally textured), directional and
 //!   environment lights.
 //! - [`integrator`]: direct illumination and path tracing with next-event estimation, multiple
 //!   importance sampling (power heuristic) and Russian roulette.
@@ -70,6 +72,7 @@
 
 pub mod accel;
 pub mod camera;
+pub mod differentials;
 pub mod distribution;
 mod error;
 pub mod film;
