@@ -18,6 +18,8 @@
 //!   environment lights.
 //! - [`integrator`]: direct illumination and path tracing with next-event estimation, multiple
 //!   importance sampling (power heuristic) and Russian roulette.
+//! - [`mirror_check`]: the check that a flat mirror makes a virtual camera for footprints (run
+//!   small in tests, large by `cargo xtask validate`).
 //! - [`film`]: pixel filters, tiles rendered in parallel with per-pixel seeded samplers (the
 //!   image is bit-identical for any thread count), EXR and PNG output.
 //! - [`limits`]: what the tracer accepts (magnitudes, sizes, counts), checked where values
@@ -84,6 +86,7 @@ pub mod light;
 pub mod limits;
 pub mod material;
 pub mod mesh;
+pub mod mirror_check;
 pub mod sampler;
 pub mod scene;
 pub mod scene_file;
