@@ -25,6 +25,7 @@ mod scenes;
 mod validate;
 mod validate_brdf;
 mod validate_counts;
+mod validate_footprints;
 mod validate_render;
 mod validate_stability;
 mod validate_trade;

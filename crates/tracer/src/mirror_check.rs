@@ -163,21 +163,29 @@ fn flipped_luminance(image: &RgbImage, flip: bool) -> Vec<f64> {
 #[must_use]
 pub fn detail(image: &[f64], width: usize) -> Vec<f64> {
     const BLOCK: usize = 8;
-    let height = image.len() / width.max(1);
-    let blocks_x = width.div_ceil(BLOCK);
-    let mut sums = vec![(0.0, 0.0); blocks_x * height.div_ceil(BLOCK)];
-    let block = |i: usize| (i / width / BLOCK) * blocks_x + (i % width) / BLOCK;
-    for (i, v) in image.iter().enumerate() {
-        let s = &mut sums[block(i)];
-        *s = (s.0 + v, s.1 + 1.0);
-    }
+    let means = block_means(image, width, BLOCK);
+    let blocks_x = width.max(1).div_ceil(BLOCK);
     image
         .iter()
         .enumerate()
-        .map(|(i, v)| {
-            let (sum, n) = sums[block(i)];
-            v - sum / n
-        })
+        .map(|(i, v)| v - means[(i / width / BLOCK) * blocks_x + (i % width) / BLOCK])
+        .collect()
+}
+
+/// The mean of each `block` × `block` square of `image` (`width` pixels per row; partial
+/// squares at the right and bottom edges), row by row.
+#[must_use]
+pub fn block_means(image: &[f64], width: usize, block: usize) -> Vec<f64> {
+    let (width, block) = (width.max(1), block.max(1));
+    let height = image.len() / width;
+    let blocks_x = width.div_ceil(block);
+    let mut sums = vec![(0.0, 0.0); blocks_x * height.div_ceil(block)];
+    for (i, v) in image.iter().enumerate() {
+        let s = &mut sums[(i / width / block) * blocks_x + (i % width) / block];
+        *s = (s.0 + v, s.1 + 1.0);
+    }
+    sums.iter()
+        .map(|(sum, n)| sum / f64::max(*n, 1.0))
         .collect()
 }
 
@@ -244,4 +252,30 @@ impl MirrorCheck {
             mean_difference: (mean(&all) / mean(&direct) - 1.0).abs(),
         })
     }
+}
+
+/// Dense glints converge to the smooth model at every depth: the panel in the mirror under
+/// `"all"` (footprints at the second hit) against the same render with every glint material's
+/// smooth limit (`"never"`, equal samples and seeds, so only f̂ against f differs). Returns the
+/// relative difference of the mean luminance and the largest relative difference of a 16 × 16
+/// block's mean.
+///
+/// # Errors
+/// A [`TracerError`] if a scene does not build or render (not expected).
+pub fn smooth_agreement(size: [u32; 3], particles: f64) -> Result<(f64, f64), TracerError> {
+    let all = render_panel(PanelView::InMirror, GlintFootprints::All, size, particles)?;
+    let smooth = render_panel(PanelView::InMirror, GlintFootprints::Never, size, particles)?;
+    let width = size[0] as usize;
+    let blocks = |image: &[f64]| {
+        let (with_detail, pixels) = (block_means(image, width, 16), image.len() as f64);
+        (with_detail, image.iter().sum::<f64>() / pixels)
+    };
+    let ((all_blocks, all_mean), (smooth_blocks, smooth_mean)) = (blocks(&all), blocks(&smooth));
+    let worst = all_blocks
+        .iter()
+        .zip(&smooth_blocks)
+        .filter(|(_, s)| **s > 0.0)
+        .map(|(a, s)| (a / s - 1.0).abs())
+        .fold(0.0, f64::max);
+    Ok(((all_mean / smooth_mean - 1.0).abs(), worst))
 }
