@@ -6,7 +6,7 @@
 //!    render (smooth in the mirror) and for a camera moved sideways by eight pixels.
 //! 2. Dense materials converge to the smooth render at the second hit: with N = 10¹² the
 //!    `"all"` render of the panel in the mirror matches the smooth render (equal samples and
-//!    seeds) within 2% in mean and 5% in every 16 × 16 block. At γ = 2° f̂ converges to f
+//!    seeds) within 2% in mean and in every 16 × 16 block within 5% of the image's mean. At γ = 2° f̂ converges to f
 //!    convolved with the cone, not to f, which leaves a bias of about 1% (see
 //!    `validate_render.rs`).
 
@@ -36,7 +36,7 @@ pub(crate) fn footprints(quick: bool, report: &mut String) -> anyhow::Result<Che
          | `\"all\"`, virtual camera moved 8 pixels | {:.3} |\n\
          | `\"first_hit\"` (smooth in the mirror) | {:.3} |\n\n\
          N = 10¹², `\"all\"` against the smooth limit in the mirror ({} spp): mean {:.2}%, worst \
-         16 × 16 block {:.2}% (tolerances 2%, 5%).\n",
+         16 × 16 block {:.2}% of the mean (tolerances 2%, 5%).\n",
         check.matched,
         100.0 * check.mean_difference,
         check.shifted,

@@ -31,3 +31,14 @@ fn all_is_first_hit_without_mirrors() {
         direct(GlintFootprints::FirstHit)
     );
 }
+
+/// Dense glints (N = 10¹²) in the mirror converge to the smooth limit.
+#[test]
+fn dense_glints_in_a_mirror_are_smooth() {
+    let (mean, worst) = glint_tracer::mirror_check::smooth_agreement([32, 32, 2], 1e12).unwrap();
+    eprintln!("mean {mean}, worst block {worst}");
+    assert!(
+        mean < 0.03 && worst < 0.08,
+        "mean {mean}, worst block {worst}"
+    );
+}
