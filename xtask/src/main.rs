@@ -27,6 +27,7 @@ mod scenes;
 mod validate;
 mod validate_brdf;
 mod validate_counts;
+mod validate_footprints;
 mod validate_light_cones;
 mod validate_pdf;
 mod validate_render;

@@ -1,6 +1,7 @@
 //! `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--out DIR] [--frames A..B]
-//! [--smooth] [--glint-light-cones] [--threads N]`: renders a scene file to linear EXR, tone-mapped PNG and a JSON
-//! file of Table-1 statistics, with a progress bar.
+//! [--smooth] [--glint-footprints all|first_hit|never] [--glint-light-cones] [--threads N]`:
+//! renders a scene file to linear EXR, tone-mapped PNG and a JSON file of Table-1 statistics,
+//! with a progress bar.
 
 use std::path::{Path, PathBuf};
 
@@ -54,6 +55,10 @@ pub(crate) struct RenderArgs {
     /// `glint_light_cones = true`; see scenes/README.md).
     #[arg(long)]
     pub(crate) glint_light_cones: bool,
+    /// Where glint materials use the pixel footprint: `first_hit` (the paper's), `all` (also
+    /// through perfect mirrors) or `never` (default: the scene's).
+    #[arg(long, value_name = "all|first_hit|never", value_parser = parse_glint_footprints)]
+    pub(crate) glint_footprints: Option<glint_tracer::GlintFootprints>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
@@ -79,6 +84,15 @@ fn parse_integrator(text: &str) -> Result<glint_tracer::IntegratorKind, String> 
         "path" => Ok(glint_tracer::IntegratorKind::Path),
         "direct" => Ok(glint_tracer::IntegratorKind::Direct),
         _ => Err(format!("`{text}`: expected `path` or `direct`")),
+    }
+}
+
+fn parse_glint_footprints(text: &str) -> Result<glint_tracer::GlintFootprints, String> {
+    match text {
+        "all" => Ok(glint_tracer::GlintFootprints::All),
+        "first_hit" => Ok(glint_tracer::GlintFootprints::FirstHit),
+        "never" => Ok(glint_tracer::GlintFootprints::Never),
+        _ => Err(format!("`{text}`: expected `all`, `first_hit` or `never`")),
     }
 }
 
@@ -158,6 +172,11 @@ pub(crate) fn statistics_json(
         "resolution": [settings.width, settings.height],
         "spp": settings.samples_per_pixel,
         "smooth": smooth,
+        "glint_footprints": match settings.glint_footprints {
+            glint_tracer::GlintFootprints::FirstHit => "first_hit",
+            glint_tracer::GlintFootprints::All => "all",
+            glint_tracer::GlintFootprints::Never => "never",
+        },
         "threads": threads,
         "seconds": s.seconds,
         "rays": s.rays,
@@ -223,6 +242,9 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
     if let Some(integrator) = args.integrator {
         settings.integrator = integrator;
+    }
+    if let Some(footprints) = args.glint_footprints {
+        settings.glint_footprints = footprints;
     }
     if let Some((w, h)) = args.resolution {
         settings.width = w;

@@ -134,6 +134,10 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
             "light cones",
             Box::new(|r| crate::validate_light_cones::light_cones(quick, r)),
         ),
+        (
+            "renders: footprints in mirrors",
+            Box::new(|r| crate::validate_footprints::footprints(quick, r)),
+        ),
     ];
     // indicatif hides the bar when the output is not a terminal.
     let bar = indicatif::ProgressBar::new(suites.len() as u64);

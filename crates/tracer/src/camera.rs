@@ -6,7 +6,8 @@
 //! rays are intersected with the tangent plane, which gives ∂p/∂x and ∂p/∂y; the chain rule
 //! ∂p/∂x = ∂p/∂u·∂u/∂x + ∂p/∂v·∂v/∂x, solved in the least-squares sense (pbrt-v4,
 //! "SurfaceInteraction::ComputeDifferentials"), gives the texture-space parallelogram the
-//! multiscale BRDF integrates over.
+//! multiscale BRDF integrates over. Specular bounces carry the offset rays on
+//! ([`crate::differentials`]), so a footprint is known wherever a path has only met mirrors.
 
 use glam::{DVec2, DVec3};
 
@@ -272,6 +273,17 @@ pub fn texture_footprint(
     hit: &SurfaceHit,
     differential: &RayDifferential,
 ) -> Option<(DVec2, DVec2)> {
+    let (dpdx, dpdy) = tangent_plane_offsets(hit, differential)?;
+    uv_derivatives(hit, dpdx, dpdy)
+}
+
+/// (∂p/∂x, ∂p/∂y): where the offset rays meet the hit's tangent plane, relative to the hit, or
+/// `None` when an offset ray misses the plane (parallel to it, or meeting it behind its origin).
+#[must_use]
+pub fn tangent_plane_offsets(
+    hit: &SurfaceHit,
+    differential: &RayDifferential,
+) -> Option<(DVec3, DVec3)> {
     let n = hit.geometric_normal;
     let plane_offset = n.dot(hit.point);
     let on_plane = |r: &Ray| -> Option<DVec3> {
@@ -281,6 +293,13 @@ pub fn texture_footprint(
     };
     let dpdx = on_plane(&differential.rx)? - hit.point;
     let dpdy = on_plane(&differential.ry)? - hit.point;
+    Some((dpdx, dpdy))
+}
+
+/// (∂(u,v)/∂x, ∂(u,v)/∂y) from (∂p/∂x, ∂p/∂y) in the tangent plane, or `None` when the tangents
+/// are degenerate.
+#[must_use]
+pub fn uv_derivatives(hit: &SurfaceHit, dpdx: DVec3, dpdy: DVec3) -> Option<(DVec2, DVec2)> {
     // Least squares: [∂p/∂u ∂p/∂v]ᵀ[∂p/∂u ∂p/∂v] (du, dv)ᵀ = [∂p/∂u ∂p/∂v]ᵀ dp.
     let (a, b, c) = (
         hit.dpdu.dot(hit.dpdu),

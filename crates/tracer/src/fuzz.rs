@@ -190,6 +190,11 @@ const SCENES: &[(&str, &str, u32)] = &[
         4,
     ),
     (
+        "glitter_mirror.toml",
+        include_str!("../../../scenes/glitter_mirror.toml"),
+        2,
+    ),
+    (
         "stained_glass.toml",
         include_str!("../../../scenes/stained_glass.toml"),
         3,

@@ -2,17 +2,22 @@
 //! sampling (the power heuristic, Veach 1997) and Russian roulette, in the style of pbrt-v4's
 //! `PathIntegrator`.
 //!
-//! The glint material is evaluated with the pixel's footprint at the first hit only and by its
-//! smooth limit after, as in the paper (Sec. 3.1): rays after a bounce carry no differentials.
-//! The switch is [`GlintFootprints`].
+//! Where glint materials get the pixel's footprint is [`GlintFootprints`]: by default at the
+//! first hit only and by their smooth limit after, as in the paper (Sec. 3.1). Under
+//! [`GlintFootprints::All`] paths carry their ray differentials through perfect mirrors
+//! ([`crate::differentials`]), so glints keep their footprint at any depth reached by mirror
+//! bounces alone; a glossy or diffuse bounce ends the differentials. Mirrors
+//! ([`Material::Mirror`]) are delta reflections: no light sample there, and the emission the
+//! reflected ray finds counts unweighted, as a camera ray's does.
 
 use glam::{DVec2, DVec3};
 use glint_brdf::QueryScratch;
 
 use crate::accel::PrimitiveHit;
 use crate::camera::{RayDifferential, texture_footprint};
+use crate::differentials::{normal_derivatives, reflect, reflected_differential};
 use crate::light_cone::ConeVertex;
-use crate::material::{GlintCounters, ShadingContext};
+use crate::material::{GlintCounters, Material, ShadingContext};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
 use crate::shape::Ray;
@@ -46,6 +51,10 @@ pub enum GlintFootprints {
     /// At the first hit seen from the camera; the smooth limit after (the paper's choice).
     #[default]
     FirstHit,
+    /// Wherever the path from the camera has met only perfect mirrors: ray differentials are
+    /// reflected at each mirror ([`crate::differentials`]). Renders as `FirstHit` in scenes
+    /// without mirrors.
+    All,
     /// Nowhere: every glint material evaluates its smooth limit (with its glint sampler).
     Never,
 }
@@ -346,6 +355,11 @@ pub fn radiance(
     let mut previous: Option<(f64, DVec3)> = None;
     // The light cones of the vertex that produced `ray`, if any.
     let mut previous_cones: Option<ConeVertex> = None;
+    // The path's ray differential while it is known (see `GlintFootprints`).
+    let mut differential = match settings.glint_footprints {
+        GlintFootprints::Never => None,
+        GlintFootprints::FirstHit | GlintFootprints::All => Some(*camera_ray),
+    };
     let mut depth = 0u32;
     loop {
         state.rays += 1;
@@ -375,13 +389,38 @@ pub fn radiance(
         let frame = Frame::new(surface.shading_normal * facing, surface.dpdu);
         let wi_world = -ray.direction;
         let wi = frame.to_local(wi_world);
-        let footprint = if depth == 0
-            && settings.glint_footprints == GlintFootprints::FirstHit
-            && material.has_glints()
-        {
-            texture_footprint(&surface, camera_ray)
-        } else {
-            None
+        if let Material::Mirror(mirror) = material {
+            // A delta reflection: no light sample, and f·cos/pdf = R.
+            let direction = reflect(ray.direction, frame.n);
+            if direction.dot(geometric_normal) <= 0.0 {
+                break;
+            }
+            throughput *= mirror.reflectance(wi.z);
+            if throughput == DVec3::ZERO {
+                break;
+            }
+            ray = Ray {
+                origin: offset_origin(surface.point, geometric_normal, direction),
+                direction,
+            };
+            differential = differential
+                .filter(|_| settings.glint_footprints == GlintFootprints::All)
+                .and_then(|d| {
+                    let geometry = &primitive.geometry;
+                    let dn = normal_derivatives(geometry, scene.accelerator.meshes(), &surface);
+                    reflected_differential(&surface, dn, &d, ray)
+                });
+            previous = None;
+            previous_cones = None;
+            depth += 1;
+            if !continue_path(&mut throughput, depth, settings, sampler) {
+                break;
+            }
+            continue;
+        }
+        let footprint = match &differential {
+            Some(d) if material.has_glints() => texture_footprint(&surface, d),
+            _ => None,
         };
         let mut ctx = ShadingContext {
             uv: surface.uv,
@@ -493,6 +532,7 @@ pub fn radiance(
         }
         previous = Some((pdf, surface.point));
         previous_cones = cones;
+        differential = None;
         let f = material.eval(wi, wo, &mut ctx);
         throughput *= f * (wo.z / pdf);
         if !throughput.is_finite() {
@@ -504,18 +544,31 @@ pub fn radiance(
             break;
         }
         depth += 1;
-        // Russian roulette on the throughput's largest channel.
-        if depth >= settings.roulette_depth {
-            let survive = throughput.max_element().min(0.95);
-            let u = sampler.next_1d();
-            if !(u < survive) {
-                break;
-            }
-            throughput /= survive;
+        if !continue_path(&mut throughput, depth, settings, sampler) {
+            break;
         }
     }
     // Not finite after an overflow: the film discards and counts such samples.
     radiance
+}
+
+/// Russian roulette on the throughput's largest channel once `depth` reaches the roulette
+/// depth: whether the path goes on (its throughput then divided by the survival probability).
+fn continue_path(
+    throughput: &mut DVec3,
+    depth: u32,
+    settings: &RenderSettings,
+    sampler: &mut PixelSampler,
+) -> bool {
+    if depth >= settings.roulette_depth {
+        let survive = throughput.max_element().min(0.95);
+        let u = sampler.next_1d();
+        if !(u < survive) {
+            return false;
+        }
+        *throughput /= survive;
+    }
+    true
 }
 
 /// The film offset of a pixel sample for the filter (filter importance sampling: every sample

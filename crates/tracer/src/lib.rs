@@ -11,11 +11,15 @@
 //! - [`camera`]: a perspective camera with ray differentials (Igehy 1999) and keyframed motion;
 //!   [`camera::texture_footprint`] turns a hit's differentials into the footprint parallelogram
 //!   of Sec. 3.1 ("Usage in a rendering system").
-//! - [`material`]: diffuse, smooth conductor, plastic, the glint material and linear
-//!   combinations; [`light`]: sphere, rectangle (optionally textured), directional and
+//! - [`differentials`]: ray differentials reflected at perfect mirrors, so glints seen in
+//!   mirrors keep their footprint under `glint_footprints = "all"`.
+//! - [`material`]: diffuse, smooth conductor, plastic, the glint material, the perfect mirror
+//!   and linear combinations; [`light`]: sphere, rectangle (optionally textured), directional and
 //!   environment lights.
 //! - [`integrator`]: direct illumination and path tracing with next-event estimation, multiple
 //!   importance sampling (power heuristic) and Russian roulette.
+//! - [`mirror_check`]: the check that a flat mirror makes a virtual camera for footprints (run
+//!   small in tests, large by `cargo xtask validate`).
 //! - [`film`]: pixel filters, tiles rendered in parallel with per-pixel seeded samplers (the
 //!   image is bit-identical for any thread count), EXR and PNG output.
 //! - [`limits`]: what the tracer accepts (magnitudes, sizes, counts), checked where values
@@ -70,6 +74,7 @@
 
 pub mod accel;
 pub mod camera;
+pub mod differentials;
 pub mod distribution;
 mod error;
 pub mod film;
@@ -82,6 +87,7 @@ pub mod light_cone;
 pub mod limits;
 pub mod material;
 pub mod mesh;
+pub mod mirror_check;
 pub mod sampler;
 pub mod scene;
 pub mod scene_file;

@@ -1,5 +1,5 @@
-//! Materials: diffuse, smooth microfacet conductor, plastic, the glint material and linear
-//! combinations. Directions are in the local shading frame (n = +z), both pointing away from
+//! Materials: diffuse, smooth microfacet conductor, plastic, the glint material, the perfect
+//! mirror and linear combinations. Directions are in the local shading frame (n = +z), both pointing away from
 //! the surface: `wi` toward the viewer (the direction a path arrives from), `wo` toward the
 //! light. Every BRDF here is reciprocal, so the order only matters for sampling, which draws
 //! `wo` given `wi`.
@@ -100,6 +100,26 @@ impl GlintMaterial {
     }
 }
 
+/// A perfect mirror: delta reflection about the shading normal, f = R δ(ω_o − reflect(ω_i)) /
+/// cos θ_o with reflectance R = `colour`·F(cos θ_i). It has no density: the integrator reflects
+/// paths at it itself (no light sample, no MIS), and carries the pixel footprint on
+/// (`crate::differentials`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mirror {
+    /// A factor on the reflectance per channel, in [0, 1].
+    pub colour: DVec3,
+    /// The Fresnel term ([`Fresnel::None`]: R = `colour` at every angle).
+    pub fresnel: Fresnel,
+}
+
+impl Mirror {
+    /// The reflectance R at `cos_theta` = cos θ_i.
+    #[must_use]
+    pub fn reflectance(&self, cos_theta: f64) -> DVec3 {
+        self.colour * self.fresnel.evaluate(cos_theta)
+    }
+}
+
 /// A material.
 #[derive(Clone, Debug)]
 pub enum Material {
@@ -112,7 +132,11 @@ pub enum Material {
     /// The discrete multiscale BRDF: f̂ with a footprint, the smooth BRDF without.
     Glint(GlintMaterial),
     /// Σ w_k f_k with weights w_k ≥ 0 (a component is sampled with probability w_k / Σ w).
+    /// Mirror components contribute nothing (scene files reject them).
     Mix(Vec<(f64, Material)>),
+    /// A perfect mirror: `eval` and `pdf` are 0 and `sample_direction` is `None` for it, as
+    /// for any delta distribution; the integrator handles it (see [`Mirror`]).
+    Mirror(Mirror),
 }
 
 /// Glint queries made while shading, for the paper's Table 1 statistics.
@@ -368,6 +392,7 @@ impl Material {
             Self::Plastic(plastic) => plastic.eval(wi, wo, ctx.uv),
             Self::Glint(glint) => glint.eval(wi, wo, ctx),
             Self::Mix(parts) => parts.iter().map(|(w, m)| *w * m.eval(wi, wo, ctx)).sum(),
+            Self::Mirror(_) => DVec3::ZERO,
         }
     }
 
@@ -392,6 +417,7 @@ impl Material {
                     .map(|(w, m)| w / total * m.pdf(wi, wo, uv))
                     .sum()
             }
+            Self::Mirror(_) => 0.0,
         }
     }
 
@@ -480,6 +506,7 @@ impl Material {
                 }
                 chosen?
             }
+            Self::Mirror(_) => return None,
         };
         above(wo).then_some(wo)
     }

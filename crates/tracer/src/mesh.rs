@@ -339,6 +339,61 @@ impl Mesh {
     }
 }
 
+impl Mesh {
+    /// (∂n/∂u, ∂n/∂v) of the unit shading normal of triangle `index` at `point` (a point of the
+    /// triangle): the derivatives of the normalized barycentric interpolation of the vertex
+    /// normals, oriented as [`Mesh::surface`] orients the normal. Zero for flat shading (no
+    /// vertex normals) and for degenerate texture coordinates or corners: the normal's jumps
+    /// across edges are not seen (see `crate::differentials`).
+    #[must_use]
+    pub fn shading_normal_derivatives(&self, index: usize, point: DVec3) -> (DVec3, DVec3) {
+        let none = (DVec3::ZERO, DVec3::ZERO);
+        if self.normals.is_empty() {
+            return none;
+        }
+        let [p0, p1, p2] = self.corners(index);
+        let [uv0, uv1, uv2] = self.corner_uvs(index);
+        let [n0, n1, n2] = self.triangles[index].map(|i| self.normals[i as usize]);
+        let (duv1, duv2) = (uv1 - uv0, uv2 - uv0);
+        let det = duv1.perp_dot(duv2);
+        if !(det.abs() > 1e-14 * duv1.length() * duv2.length() && det != 0.0) {
+            return none;
+        }
+        // The point's barycentrics (b1, b2) by least squares on the edges Δp₁, Δp₂.
+        let (dp1, dp2, d) = (p1 - p0, p2 - p0, point - p0);
+        let (a, b, c) = (dp1.dot(dp1), dp1.dot(dp2), dp2.dot(dp2));
+        let det_p = a * c - b * b;
+        if !(det_p > 0.0 && det_p.is_finite()) {
+            return none;
+        }
+        let (r, s) = (dp1.dot(d), dp2.dot(d));
+        let (b1, b2) = ((c * r - b * s) / det_p, (a * s - b * r) / det_p);
+        let (dn1, dn2) = (n1 - n0, n2 - n0);
+        let interpolated = n0 + b1 * dn1 + b2 * dn2;
+        let length = interpolated.length();
+        if !(length > 0.0 && length.is_finite()) {
+            return none;
+        }
+        let n = interpolated / length;
+        // (b1, b2) = [Δuv₁ Δuv₂]⁻¹ (uv − uv₀): ∂b1/∂u = Δv₂/det, ∂b2/∂u = −Δv₁/det, etc.
+        let raw_u = (duv2.y * dn1 - duv1.y * dn2) / det;
+        let raw_v = (duv1.x * dn2 - duv2.x * dn1) / det;
+        // ∂(ñ/|ñ|) = (∂ñ − n (n·∂ñ)) / |ñ|, negated where `surface` flips n to the front side.
+        let sign = if n.dot(dp1.cross(dp2)) < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        let project = |dn: DVec3| sign * (dn - n * n.dot(dn)) / length;
+        let derivatives = (project(raw_u), project(raw_v));
+        if derivatives.0.is_finite() && derivatives.1.is_finite() {
+            derivatives
+        } else {
+            none
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

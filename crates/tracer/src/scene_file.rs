@@ -31,8 +31,8 @@ use crate::integrator::{
     RenderSettings,
 };
 use crate::light::{EnvironmentMap, Light};
-use crate::limits::{self, echo};
-use crate::material::{GlintMaterial, Material, Plastic, Texture};
+use crate::limits::{self, echo, vector};
+use crate::material::{GlintMaterial, Material, Mirror, Plastic, Texture};
 use crate::mesh::Mesh;
 use crate::scene::Scene;
 use crate::shape::{Rectangle, Sphere};
@@ -200,6 +200,7 @@ enum StrategyName {
 #[serde(rename_all = "snake_case")]
 enum FootprintName {
     FirstHit,
+    All,
     Never,
 }
 
@@ -242,7 +243,7 @@ struct KeyframeSection {
 }
 
 /// The material types, by their `type`.
-const MATERIAL_TYPES: &[&str] = &["diffuse", "conductor", "plastic", "glint", "mix"];
+const MATERIAL_TYPES: &[&str] = &["diffuse", "conductor", "plastic", "glint", "mirror", "mix"];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -260,6 +261,13 @@ struct ConductorSection {
     alpha: Roughness,
     eta: Colour,
     k: Colour,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MirrorSection {
+    colour: Option<Colour>,
+    fresnel: Option<FresnelSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -843,6 +851,20 @@ impl Builder<'_> {
                 let g: GlintSection = self.section(&field, section)?;
                 self.glint(&field, &g)?
             }
+            "mirror" => {
+                let m: MirrorSection = self.section(&field, section)?;
+                let colour = m.colour.map_or(DVec3::ONE, |c| c.rgb());
+                if !(colour.min_element() >= 0.0 && colour.max_element() <= 1.0) {
+                    return self.fail(
+                        format!("{field}.colour"),
+                        format!("each channel must be in [0, 1], got {}", vector(colour)),
+                    );
+                }
+                Material::Mirror(Mirror {
+                    colour,
+                    fresnel: self.fresnel(&format!("{field}.fresnel"), m.fresnel.as_ref())?,
+                })
+            }
             _ => {
                 let m: MixSection = self.section(&field, section)?;
                 if m.components.is_empty() {
@@ -868,16 +890,42 @@ impl Builder<'_> {
                         );
                     }
                     let used_at = format!("{component}.material");
-                    parts.push((
-                        weight,
-                        self.material(&c.material, &used_at, sections, visiting)?,
-                    ));
+                    let part = self.material(&c.material, &used_at, sections, visiting)?;
+                    if matches!(part, Material::Mirror(_)) {
+                        return self.fail(
+                            used_at,
+                            format!(
+                                "`{}` is a mirror, which cannot be a mix component (a delta \
+                                 reflection has no density to mix)",
+                                echo(&c.material)
+                            ),
+                        );
+                    }
+                    parts.push((weight, part));
                 }
                 visiting.pop();
                 if !(parts.iter().map(|p| p.0).sum::<f64>() > 0.0) {
                     return self.fail(format!("{field}.components"), "the weights sum to zero");
                 }
                 Material::Mix(parts)
+            }
+        })
+    }
+
+    /// The Fresnel term of section `field` (absent: none).
+    fn fresnel(&self, field: &str, section: Option<&FresnelSection>) -> Checked<Fresnel> {
+        Ok(match section {
+            None | Some(FresnelSection::None) => Fresnel::None,
+            Some(FresnelSection::Conductor { eta, k }) => Fresnel::Conductor {
+                eta: self.ior(&format!("{field}.eta"), *eta)?,
+                k: self.ior(&format!("{field}.k"), *k)?,
+            },
+            Some(FresnelSection::Dielectric { eta }) => {
+                let eta_field = format!("{field}.eta");
+                let eta = self.positive(&eta_field, *eta)?;
+                Fresnel::Dielectric {
+                    eta: self.within(&eta_field, eta, 0.0, limits::MAX_IOR)?,
+                }
             }
         })
     }
@@ -909,20 +957,7 @@ impl Builder<'_> {
             parameters.epsilon = epsilon;
         }
         parameters.seed = g.seed.unwrap_or(0);
-        parameters.fresnel = match &g.fresnel {
-            None | Some(FresnelSection::None) => Fresnel::None,
-            Some(FresnelSection::Conductor { eta, k }) => Fresnel::Conductor {
-                eta: self.ior(&format!("{field}.fresnel.eta"), *eta)?,
-                k: self.ior(&format!("{field}.fresnel.k"), *k)?,
-            },
-            Some(FresnelSection::Dielectric { eta }) => {
-                let eta_field = format!("{field}.fresnel.eta");
-                let eta = self.positive(&eta_field, *eta)?;
-                Fresnel::Dielectric {
-                    eta: self.within(&eta_field, eta, 0.0, limits::MAX_IOR)?,
-                }
-            }
-        };
+        parameters.fresnel = self.fresnel(&format!("{field}.fresnel"), g.fresnel.as_ref())?;
         parameters.multinomial = match g.multinomial {
             None | Some(MultinomialName::Exact) => MultinomialMode::Exact,
             Some(MultinomialName::Normal) => MultinomialMode::Normal,
@@ -1150,6 +1185,7 @@ impl Builder<'_> {
         if let Some(g) = r.glint_footprints {
             s.glint_footprints = match g {
                 FootprintName::FirstHit => GlintFootprints::FirstHit,
+                FootprintName::All => GlintFootprints::All,
                 FootprintName::Never => GlintFootprints::Never,
             };
         }
