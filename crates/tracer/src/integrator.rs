@@ -461,30 +461,44 @@ pub fn radiance(
                 let wo = frame.to_local(sample.direction);
                 let same_side = sample.direction.dot(geometric_normal) > 0.0;
                 if same_side && wo.z > 0.0 {
-                    let f = material.eval(wi, wo, &mut ctx);
-                    if f != DVec3::ZERO {
+                    let unoccluded = |rays: &mut u64| {
                         let origin =
                             offset_origin(surface.point, geometric_normal, sample.direction);
                         let shadow = Ray {
                             origin,
                             direction: sample.direction,
                         };
-                        state.rays += 1;
+                        *rays += 1;
                         let t_max = if sample.distance.is_finite() {
                             sample.distance * (1.0 - 1e-7)
                         } else {
                             f64::INFINITY
                         };
-                        if !scene.occluded(&shadow, t_max) {
-                            let pdf_light = sample.pdf * light_pick;
-                            let weight = if sample.is_delta || !use_brdf_hits {
-                                1.0
-                            } else {
-                                power_heuristic(pdf_light, material.pdf(wi, wo, surface.uv))
-                            };
-                            radiance +=
-                                throughput * f * sample.radiance * (wo.z * weight / pdf_light);
-                        }
+                        !scene.occluded(&shadow, t_max)
+                    };
+                    // A glint query costs microseconds, a shadow ray a fraction of one: with a
+                    // footprint the ray goes first; otherwise f goes first, and a zero f saves
+                    // the ray. Either order gives the same contribution.
+                    let (f, visible) = if ctx.footprint.is_some() {
+                        let visible = unoccluded(&mut state.rays);
+                        let f = if visible {
+                            material.eval(wi, wo, &mut ctx)
+                        } else {
+                            DVec3::ZERO
+                        };
+                        (f, visible)
+                    } else {
+                        let f = material.eval(wi, wo, &mut ctx);
+                        (f, f != DVec3::ZERO && unoccluded(&mut state.rays))
+                    };
+                    if visible && f != DVec3::ZERO {
+                        let pdf_light = sample.pdf * light_pick;
+                        let weight = if sample.is_delta || !use_brdf_hits {
+                            1.0
+                        } else {
+                            power_heuristic(pdf_light, material.pdf(wi, wo, surface.uv))
+                        };
+                        radiance += throughput * f * sample.radiance * (wo.z * weight / pdf_light);
                     }
                 }
             }
