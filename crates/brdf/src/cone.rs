@@ -12,11 +12,25 @@ pub fn cone_solid_angle(gamma: f64) -> f64 {
     4.0 * std::f64::consts::PI * (0.5 * gamma).sin().powi(2)
 }
 
+/// 1 − cos γ, written as 2 sin²(γ/2) so that it keeps its precision for tiny γ: the size of the
+/// cone that [`uniform_in_cap`] takes.
+#[must_use]
+pub fn cone_versine(gamma: f64) -> f64 {
+    2.0 * (0.5 * gamma).sin().powi(2)
+}
+
 /// A direction uniform (in solid angle) in the cone of radius γ around unit `axis`, from two
-/// uniform numbers: 1 − cos θ = u·(1 − cos γ), written with 2 sin²(γ/2) for tiny γ, φ = 2πv.
+/// uniform numbers: 1 − cos θ = u·(1 − cos γ), φ = 2πv.
 #[must_use]
 pub fn uniform_in_cone(axis: DVec3, gamma: f64, u: f64, v: f64) -> DVec3 {
-    let one_minus_cos = u * 2.0 * (0.5 * gamma).sin().powi(2);
+    uniform_in_cap(axis, cone_versine(gamma), u, v)
+}
+
+/// [`uniform_in_cone`] for a cone given by its `versine` 1 − cos γ ([`cone_versine`]), for
+/// callers that draw many directions in one cone.
+#[must_use]
+pub fn uniform_in_cap(axis: DVec3, versine: f64, u: f64, v: f64) -> DVec3 {
+    let one_minus_cos = u * versine;
     let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
     let phi = 2.0 * std::f64::consts::PI * v;
     let (t, s) = orthonormal_basis(axis);

@@ -20,7 +20,7 @@
 
 use glam::DVec3;
 
-use crate::cone::uniform_in_cone;
+use crate::cone::{cone_versine, uniform_in_cap, uniform_in_cone};
 use crate::distribution::Microfacet;
 use crate::distribution::NormalSampling;
 use crate::error::BrdfError;
@@ -49,8 +49,8 @@ pub enum PdfQuadrature {
 pub(crate) struct GlintSampler {
     /// The widened smooth model (F = 1) that chooses the cone's centre.
     widened: MicrofacetBrdf,
-    /// γ, the cone's radius.
-    gamma: f64,
+    /// 1 − cos γ, the cone's size for [`uniform_in_cap`].
+    versine: f64,
     /// The pdf's quadrature points in the cone's own frame (axis +z) with their weights
     /// (summing to 1), computed once.
     cone_points: Vec<(DVec3, f64)>,
@@ -145,7 +145,7 @@ impl GlintSampler {
         };
         Ok(Self {
             widened,
-            gamma,
+            versine: cone_versine(gamma),
             cone_points,
             horizon_points,
             sin_gamma: gamma.sin(),
@@ -160,7 +160,7 @@ impl GlintSampler {
         }
         let wi = wi.normalize();
         let centre = self.widened.sample_direction(wi, [u[0], u[1]])?;
-        let wo = uniform_in_cone(centre, self.gamma, u[2], u[3]);
+        let wo = uniform_in_cap(centre, self.versine, u[2], u[3]);
         above_horizon(wo).then_some(wo)
     }
 
