@@ -325,7 +325,6 @@ mod tests {
                     LeafParticle {
                         normal,
                         multiplicity: 1,
-                        shares: [0.0; 3],
                     }
                 })
                 .collect();

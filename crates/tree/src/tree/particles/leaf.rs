@@ -49,7 +49,6 @@ const DRAW_AREAS: u32 = 2;
 pub(in crate::tree) struct LeafParticle {
     pub(super) normal: NormalDescent,
     pub(super) multiplicity: u64,
-    pub(super) shares: [f64; 3],
 }
 
 /// The key and TEA rounds of a leaf's particles' streams.
@@ -73,19 +72,21 @@ impl CountTree {
     ) -> (f64, [f64; 3]) {
         let box_size = node.box_size();
         let channels = self.config.colour_channels;
-        // Each particle's share of the node's area, per channel: Dirichlet(1, …, 1) as
-        // normalized exponentials (all particles' draws are needed for the normalization).
         let key = node.id.key(self.config.seed);
         let rounds = self.config.tea_rounds;
-        let mut exponential_sums = [0.0; 3];
-        if channels > 0 {
-            for k in 0..node.count {
-                let mut rng = TeaRng::starting_at(key, PURPOSE_LEAF + k as u32, rounds, DRAW_AREAS);
-                for sum in exponential_sums.iter_mut().take(channels) {
-                    *sum += exponential(&mut rng);
-                }
+        // Each particle's share of the node's area, per channel: Dirichlet(1, …, 1) as
+        // normalized exponentials, drawn from the particle's own stream. Only the particles
+        // found need their shares, but the normalization needs every particle's draws: both
+        // are drawn once the first particle is found (most leaves a query reaches hold none).
+        let shares_of = |purpose: u32| {
+            let mut shares = [0.0; 3];
+            let mut rng = TeaRng::starting_at(key, purpose, rounds, DRAW_AREAS);
+            for share in shares.iter_mut().take(channels) {
+                *share = exponential(&mut rng);
             }
-        }
+            shares
+        };
+        let mut exponential_sums: Option<[f64; 3]> = None;
         // Particle k lies in one of the box's 4×4 sub-boxes, four random bits of the leaf's
         // own stream (sixteen particles per draw), and uniformly in it: its position is draw 0
         // of its stream (x from the high 32 bits, y from the low ones). That is uniform in the
@@ -129,17 +130,9 @@ impl CountTree {
                     if multiplicity == 0 {
                         continue;
                     }
-                    let mut shares = [0.0; 3];
-                    if channels > 0 {
-                        let mut rng = TeaRng::starting_at(key, purpose, rounds, DRAW_AREAS);
-                        for share in shares.iter_mut().take(channels) {
-                            *share = exponential(&mut rng);
-                        }
-                    }
                     in_footprint.push(LeafParticle {
                         normal: NormalDescent::new(purpose, DRAW_AREAS + channels as u32),
                         multiplicity,
-                        shares,
                     });
                 }
             }
@@ -170,10 +163,23 @@ impl CountTree {
             for particle in members(inside).map(|k| &group[k]) {
                 let multiplicity = particle.multiplicity as f64;
                 found += multiplicity;
+                if channels == 0 {
+                    continue;
+                }
+                let sums = *exponential_sums.get_or_insert_with(|| {
+                    let mut sums = [0.0; 3];
+                    for k in 0..node.count {
+                        let shares = shares_of(PURPOSE_LEAF + k as u32);
+                        for (sum, share) in sums.iter_mut().zip(shares).take(channels) {
+                            *sum += share;
+                        }
+                    }
+                    sums
+                });
+                let shares = shares_of(particle.normal.purpose);
                 for c in 0..channels {
-                    if exponential_sums[c] > 0.0 {
-                        areas[c] +=
-                            multiplicity * node.areas[c] * particle.shares[c] / exponential_sums[c];
+                    if sums[c] > 0.0 {
+                        areas[c] += multiplicity * node.areas[c] * shares[c] / sums[c];
                     }
                 }
             }
