@@ -54,6 +54,14 @@ const PURPOSE_LEAF_SUB_BOXES: u32 = 4; // after the area channels (at most 3)
 const PURPOSE_PAIR: u32 = 5; // + pair (0 or 1): the division of an exact split's pair
 const PURPOSE_LEAF: u32 = 16; // + particle index
 
+/// The areas of a coloured node whose split has not drawn them (see
+/// `CountTree::with_areas`).
+pub(super) const UNDRAWN_AREAS: [f64; 3] = [f64::NAN; 3];
+
+/// Queries leave the areas of coloured children undrawn above this depth, where labels are
+/// exact (to depth 62) and so hold the path that `CountTree::with_areas` retraces.
+pub(super) const DRAWN_AREAS_DEPTH: u32 = 60;
+
 /// A node of the tree during a query.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Node {

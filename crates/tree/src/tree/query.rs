@@ -18,7 +18,7 @@
 use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic, overlap_solid_angle};
 
-use super::particles::{LEAF_PARTICLES, Node, quarter_min};
+use super::particles::{DRAWN_AREAS_DEPTH, LEAF_PARTICLES, Node, quarter_min};
 use super::scratch::QueryMemo;
 use super::{CountTree, QueryScratch};
 use crate::footprint::{BoxOverlap, Footprint};
@@ -149,7 +149,7 @@ impl CountTree {
                 if spatial.partial == 0 && directions_inside {
                     let multiplicity = spatial.inside as f64;
                     count += multiplicity * node.count as f64;
-                    accumulate(&mut area_sums, node.areas, multiplicity);
+                    accumulate(&mut area_sums, self.areas_of(node, memo), multiplicity);
                     continue;
                 }
                 // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
@@ -163,7 +163,7 @@ impl CountTree {
                 // [0, hi] has variance ≤ hi²/4) already passes. The descent is only worth it
                 // once a query has proved long (the scale floor is active); before that the
                 // paper's condition decides, as in Alg. 1.
-                let mut expected_share = || {
+                let expected_share = |memo: &mut QueryMemo, cells: &mut Vec<DirectionalCell>| {
                     let directional = if directions_inside {
                         1.0
                     } else {
@@ -178,10 +178,10 @@ impl CountTree {
                 let descend =
                     scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
                 if threshold > 0.0 && (descend || cheap()) {
-                    let share = expected_share();
+                    let share = expected_share(memo, cells);
                     if share.deviation(node.count) < threshold {
                         count += node.count as f64 * share.mean;
-                        accumulate(&mut area_sums, node.areas, share.mean);
+                        accumulate(&mut area_sums, self.areas_of(node, memo), share.mean);
                         continue;
                     }
                 }
@@ -192,9 +192,9 @@ impl CountTree {
                     || (node.depth >= self.config.max_depth && node.count > MAX_EXPLICIT_PARTICLES)
                 {
                     // The work guard, or the depth guard on a crowded node: the expected share.
-                    let share = expected_share();
+                    let share = expected_share(memo, cells);
                     count += node.count as f64 * share.mean;
-                    accumulate(&mut area_sums, node.areas, share.mean);
+                    accumulate(&mut area_sums, self.areas_of(node, memo), share.mean);
                     continue;
                 }
                 if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
@@ -267,7 +267,9 @@ impl CountTree {
         if self.config.colour_channels > 0 {
             let mut children = [*node; 4];
             let mut k = 0;
-            self.emit_children(node, |child| {
+            // The children's areas are drawn when a query counts them (`with_areas`).
+            let draw_areas = node.depth + 1 >= DRAWN_AREAS_DEPTH;
+            self.emit_children_drawing(node, draw_areas, |child| {
                 children[k] = child;
                 k += 1;
             });
@@ -302,6 +304,16 @@ impl CountTree {
             }
         }
         tested
+    }
+
+    /// The node's particle areas (drawn now if its split left them undrawn); unused without
+    /// colour channels.
+    fn areas_of(&self, node: &Node, memo: &mut QueryMemo) -> [f64; 3] {
+        if self.config.colour_channels > 0 {
+            self.with_areas(node, memo).areas
+        } else {
+            node.areas
+        }
     }
 
     fn result(

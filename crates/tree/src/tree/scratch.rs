@@ -10,10 +10,11 @@ use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic};
 
 use super::CountTree;
-use super::particles::{LeafParticle, box_size_at};
+use super::particles::{LeafParticle, Node, box_size_at};
 use super::query::QueuedNode;
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
+use crate::node::NodeId;
 
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
 /// first query allocates 66 KB of memo tables (answers that recur within a query, and split
@@ -49,6 +50,7 @@ impl QueryScratch {
 pub(super) struct QueryMemo {
     classifications: Vec<ClassificationEntry>,
     fractions: Vec<FractionEntry>,
+    with_areas: Vec<NodeEntry>,
     boxes: Vec<BoxEntry>,
     generation: u32,
     splits: Vec<SplitEntry>,
@@ -79,6 +81,13 @@ struct FractionEntry {
     fraction: f64,
 }
 
+/// A coloured node with its particle areas drawn (see `CountTree::with_areas`).
+#[derive(Clone, Copy, Debug)]
+struct NodeEntry {
+    generation: u32,
+    node: Option<Node>,
+}
+
 /// A box (its corner's bits and its level) and how the query's footprint meets it.
 #[derive(Clone, Copy, Debug)]
 struct BoxEntry {
@@ -92,6 +101,8 @@ struct BoxEntry {
 /// 6 KB) and the box table (256, 10 KB).
 const CLASSIFICATION_MEMO_BITS: u32 = 9;
 const FRACTION_MEMO_BITS: u32 = 8;
+/// log₂ of the entries of the table of nodes with drawn areas (128, 17 KB).
+const AREAS_MEMO_BITS: u32 = 7;
 const BOX_MEMO_BITS: u32 = 8;
 
 /// log₂ of the entries of the split table (1024, 48 KB).
@@ -114,6 +125,10 @@ impl QueryMemo {
         generation: 0,
         fraction: 0.0,
     };
+    const NO_NODE: NodeEntry = NodeEntry {
+        generation: 0,
+        node: None,
+    };
     const NO_BOX: BoxEntry = BoxEntry {
         corner: [0; 2],
         level: 0,
@@ -135,6 +150,7 @@ impl QueryMemo {
         if self.classifications.is_empty() {
             self.classifications = vec![Self::NO_CLASSIFICATION; 1 << CLASSIFICATION_MEMO_BITS];
             self.fractions = vec![Self::NO_FRACTION; 1 << FRACTION_MEMO_BITS];
+            self.with_areas = vec![Self::NO_NODE; 1 << AREAS_MEMO_BITS];
             self.boxes = vec![Self::NO_BOX; 1 << BOX_MEMO_BITS];
             self.splits = vec![Self::NO_SPLIT; 1 << SPLIT_MEMO_BITS];
         }
@@ -143,6 +159,7 @@ impl QueryMemo {
             // After 2³² queries: entries of generation 0 are never current.
             self.classifications.fill(Self::NO_CLASSIFICATION);
             self.fractions.fill(Self::NO_FRACTION);
+            self.with_areas.fill(Self::NO_NODE);
             self.boxes.fill(Self::NO_BOX);
             self.generation = 1;
         }
@@ -201,6 +218,32 @@ impl QueryMemo {
             fraction,
         };
         fraction
+    }
+
+    /// The node `id` with its areas drawn, if this query has drawn them (a query's counted
+    /// nodes share most of their ancestors).
+    #[inline]
+    pub(super) fn node_with_areas(&self, id: NodeId) -> Option<Node> {
+        let entry = self.with_areas.get(memo_slot(
+            id.0 as u64 ^ (id.0 >> 64) as u64,
+            AREAS_MEMO_BITS,
+        ))?;
+        entry
+            .node
+            .filter(|node| entry.generation == self.generation && node.id == id)
+    }
+
+    /// Remembers `node`, whose areas are drawn, for the rest of the query.
+    #[inline]
+    pub(super) fn remember_with_areas(&mut self, node: Node) {
+        let id = node.id;
+        let slot = memo_slot(id.0 as u64 ^ (id.0 >> 64) as u64, AREAS_MEMO_BITS);
+        if let Some(entry) = self.with_areas.get_mut(slot) {
+            *entry = NodeEntry {
+                generation: self.generation,
+                node: Some(node),
+            };
+        }
     }
 
     /// How the query's `footprint` meets the box at `box_min` of side 2^−`box_level`: the

@@ -87,6 +87,7 @@ impl CountTree {
             shares
         };
         let mut exponential_sums: Option<[f64; 3]> = None;
+        let mut node_areas: Option<[f64; 3]> = None;
         // Particle k lies in one of the box's 4×4 sub-boxes, four random bits of the leaf's
         // own stream (sixteen particles per draw), and uniformly in it: its position is draw 0
         // of its stream (x from the high 32 bits, y from the low ones). That is uniform in the
@@ -177,9 +178,11 @@ impl CountTree {
                     sums
                 });
                 let shares = shares_of(particle.normal.purpose);
+                let node_areas =
+                    *node_areas.get_or_insert_with(|| self.with_areas(node, memo).areas);
                 for c in 0..channels {
                     if sums[c] > 0.0 {
-                        areas[c] += multiplicity * node.areas[c] * shares[c] / sums[c];
+                        areas[c] += multiplicity * node_areas[c] * shares[c] / sums[c];
                     }
                 }
             }

@@ -9,13 +9,14 @@ use std::borrow::Cow;
 
 use glam::DVec2;
 
-use super::{Node, PURPOSE_AREA, PURPOSE_PAIR, PURPOSE_SPLIT};
+use super::{DRAWN_AREAS_DEPTH, Node, PURPOSE_AREA, PURPOSE_PAIR, PURPOSE_SPLIT, UNDRAWN_AREAS};
 use crate::ndf::{DirectionalCell, DirectionalSplit};
 use crate::sampling::{
     dirichlet4, divide_pair, multinomial4, multinomial4_equal, pair_totals, splits_by_pairs,
 };
 use crate::tea::{TeaRng, draws_x4};
 use crate::tree::CountTree;
+use crate::tree::scratch::QueryMemo;
 
 impl CountTree {
     /// Eq. 11: whether `node` splits in space (else in direction).
@@ -28,19 +29,36 @@ impl CountTree {
     /// Hands the four children of `node` (counts drawn from its streams) to `emit`, in order,
     /// and returns whether the split is spatial. A pure function of the node: the same
     /// children in every query.
-    pub(in crate::tree) fn emit_children(&self, node: &Node, mut emit: impl FnMut(Node)) -> bool {
+    pub(in crate::tree) fn emit_children(&self, node: &Node, emit: impl FnMut(Node)) -> bool {
+        self.emit_children_drawing(node, true, emit)
+    }
+
+    /// [`Self::emit_children`], with the children's particle areas (coloured materials) drawn
+    /// only if `draw_areas`; otherwise they are [`UNDRAWN_AREAS`], which
+    /// [`Self::with_areas`] draws when a query needs them. The areas come from streams of
+    /// their own, so the counts are the same either way.
+    pub(in crate::tree) fn emit_children_drawing(
+        &self,
+        node: &Node,
+        draw_areas: bool,
+        mut emit: impl FnMut(Node),
+    ) -> bool {
         let spatial = self.splits_in_space(node);
         let split = (!spatial).then(|| self.directional_split(&node.cell));
         let mut counts = self.split_counts(node, split.as_deref());
         let counts = [counts.divide(0), counts.divide(1)];
         let counts = [counts[0][0], counts[0][1], counts[1][0], counts[1][1]];
         let mut areas = [[0.0; 3]; 4];
-        for channel in 0..self.config.colour_channels {
-            let mut rng = self.stream(node.id, PURPOSE_AREA + channel as u32);
-            let parts = dirichlet4(counts, &mut rng);
-            for (child_areas, part) in areas.iter_mut().zip(parts) {
-                child_areas[channel] = node.areas[channel] * part;
+        if draw_areas {
+            for channel in 0..self.config.colour_channels {
+                let mut rng = self.stream(node.id, PURPOSE_AREA + channel as u32);
+                let parts = dirichlet4(counts, &mut rng);
+                for (child_areas, part) in areas.iter_mut().zip(parts) {
+                    child_areas[channel] = node.areas[channel] * part;
+                }
             }
+        } else {
+            areas = [UNDRAWN_AREAS; 4];
         }
         for j in 0..4 {
             emit(Node {
@@ -49,6 +67,54 @@ impl CountTree {
             });
         }
         spatial
+    }
+
+    /// `node` with its particle areas drawn: as it is if they are, else as
+    /// [`Self::emit_children`] draws them on the way down from the root. A node's label holds
+    /// its path (child j of label i is 4i + j − 1), so the way down takes the cached top
+    /// levels, then one split per level: the same nodes, with the same draws, as a query that
+    /// drew every split's areas. Only the nodes a query counts need their areas (most queries
+    /// count none); `memo` keeps the nodes drawn on the way for the query's other counted
+    /// nodes, which share most of their ancestors.
+    pub(in crate::tree) fn with_areas(&self, node: &Node, memo: &mut QueryMemo) -> Node {
+        if !node.areas[0].is_nan() {
+            return *node;
+        }
+        // The path's digits, deepest first (labels are exact at the depths areas are left
+        // undrawn: see `DRAWN_AREAS_DEPTH`).
+        let mut digits = [0u8; DRAWN_AREAS_DEPTH as usize];
+        let mut label = node.id.0;
+        for digit in digits.iter_mut().take(node.depth as usize) {
+            *digit = ((label + 1) % 4) as u8;
+            label = (label + 1) / 4;
+        }
+        let mut current = self.root();
+        for &j in digits[..node.depth as usize].iter().rev() {
+            let j = usize::from(j);
+            current = match self.top_levels.get(&current) {
+                Some((children, _)) => children[j],
+                None => match memo.node_with_areas(current.id.child(j)) {
+                    Some(child) => child,
+                    None => {
+                        let mut child = current;
+                        let mut k = 0;
+                        self.emit_children(&current, |c| {
+                            if k == j {
+                                child = c;
+                            }
+                            k += 1;
+                        });
+                        memo.remember_with_areas(child);
+                        child
+                    }
+                },
+            };
+        }
+        debug_assert_eq!((current.id, current.count), (node.id, node.count));
+        Node {
+            areas: current.areas,
+            ..*node
+        }
     }
 
     /// The counts of `node`'s split (`split`: its directional split, `None` for a spatial
