@@ -284,8 +284,8 @@ fn tables(
         write!(
             table,
             "\nWhere the one-thread glint render's time goes (`perf record` call stacks at 250 Hz; \
-             a sample counts in the first part that a frame of its stack names, innermost \
-             first; the rest is what glint and smooth renders share: rays, light and smooth \
+             a sample counts in the first part, in the table's order, that names a frame of its \
+             stack; the rest is what glint and smooth renders share: rays, light and smooth \
              BRDFs, the film). Seconds are the share times the median glint time above; \
              \"glint parts\" sums the parts before the rest, to set against the measured \
              glint − smooth time.\n\n| scene |"
