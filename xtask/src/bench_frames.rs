@@ -4,7 +4,7 @@
 //! render on one thread that splits its time into the parts of the glint model.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use anyhow::Context;
@@ -70,17 +70,6 @@ struct SceneCost {
     /// Per thread count: (threads, median glint seconds, median smooth seconds, median ratio,
     /// the glint render's statistics).
     runs: Vec<(usize, f64, f64, f64, RenderStatistics)>,
-}
-
-fn scene_files() -> anyhow::Result<Vec<PathBuf>> {
-    let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&folder)
-        .with_context(|| format!("reading {}", folder.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    files.sort();
-    Ok(files)
 }
 
 fn median(values: &mut [f64]) -> f64 {
@@ -225,7 +214,7 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<String> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut costs = Vec::new();
     let mut profiles = Vec::new();
-    for path in scene_files()? {
+    for path in crate::scenes::scene_files()? {
         let cost = measure(&path, quick)?;
         profiles.push(profile(&path, &cost.settings, out));
         costs.push(cost);

@@ -91,6 +91,18 @@ pub(crate) fn display_image(image: &RgbImage, settings: &RenderSettings) -> RgbI
     }
 }
 
+/// The scene files in `scenes/`, sorted by name.
+pub(crate) fn scene_files() -> anyhow::Result<Vec<PathBuf>> {
+    let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&folder)
+        .with_context(|| format!("reading {}", folder.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    Ok(files)
+}
+
 pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
     crate::assets::ensure()?;
     let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
@@ -100,16 +112,14 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
     if args.update_previews {
         std::fs::create_dir_all(&previews)?;
     }
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&folder)?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+    let files: Vec<PathBuf> = scene_files()?
+        .into_iter()
         .filter(|p| {
             args.only
                 .as_deref()
                 .is_none_or(|o| p.file_stem().is_some_and(|s| s == o))
         })
         .collect();
-    files.sort();
     let mut table = String::from(
         "| scene | N | γ | α | resolution, spp | queries skipped as negligible | mean nodes visited per traversed query (per material) | meeting the query (per material) | mean particles found | glint time | smooth time | glint / smooth |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );

@@ -258,7 +258,7 @@ impl BlockAgreement {
             let variance = set.iter().map(|r| (r[k] - mean).powi(2)).sum::<f64>() / (n - 1.0);
             (mean, variance / n)
         };
-        let count = blocks * blocks;
+        let count = b.first().map_or(0, Vec::len);
         let brightest = (0..count).map(|k| stats(&b, k).0).fold(0.0, f64::max);
         let (mut z, mut relative) = (vec![], vec![]);
         for k in 0..count {
@@ -290,22 +290,15 @@ impl BlockAgreement {
     }
 }
 
-/// Mean luminance of each block of a `blocks` × `blocks` grid over the image.
+/// Mean luminance of each square block of side `width / blocks` over the image (a `blocks` ×
+/// `blocks` grid on the square test images; partial blocks at the edges otherwise).
 fn block_means(image: &crate::image::RgbImage, blocks: usize) -> Vec<f64> {
-    let (bw, bh) = (image.width / blocks, image.height / blocks);
-    let mut out = Vec::with_capacity(blocks * blocks);
-    for by in 0..blocks {
-        for bx in 0..blocks {
-            let mut sum = 0.0;
-            for y in by * bh..(by + 1) * bh {
-                for x in bx * bw..(bx + 1) * bw {
-                    sum += crate::light::luminance(image.pixels[y * image.width + x]);
-                }
-            }
-            out.push(sum / (bw * bh).max(1) as f64);
-        }
-    }
-    out
+    let luminance: Vec<f64> = image
+        .pixels
+        .iter()
+        .map(|&p| crate::light::luminance(p))
+        .collect();
+    crate::mirror_check::block_means(&luminance, image.width, image.width / blocks.max(1))
 }
 
 /// A test scene for light cones: a glint floor under one sphere light of radius `radius`
