@@ -218,6 +218,14 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let build_start = std::time::Instant::now();
     let mut scene = load_scene(&scene_path)?;
     let build_seconds = build_start.elapsed().as_secs_f64();
+    // Eq. 11's plan per glint material (before `--smooth` removes the glints).
+    let plans: serde_json::Map<String, serde_json::Value> = scene
+        .material_names
+        .iter()
+        .zip(&scene.materials)
+        .filter(|(_, m)| m.has_glints())
+        .map(|(name, m)| (name.clone(), m.expected_footprint_areas().into()))
+        .collect();
     if let Some(count) = args.negligible_count {
         scene
             .set_negligible_count(count)
@@ -306,7 +314,8 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         crate::scenes::display_image(&output.image, &settings)
             .write_png(&png, settings.exposure)?;
         let s = output.statistics;
-        let stats = statistics_json(&scene_path, frame, &settings, args.smooth, threads, &s);
+        let mut stats = statistics_json(&scene_path, frame, &settings, args.smooth, threads, &s);
+        stats["expected_footprint_areas"] = plans.clone().into();
         std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")
             .with_context(|| format!("cannot write {}", json.display()))?;
         println!("frame {frame}: {s} → {}", png.display());

@@ -20,7 +20,7 @@ use crate::light_cone::ConeVertex;
 use crate::material::{GlintCounters, Material, ShadingContext};
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
-use crate::shape::Ray;
+use crate::shape::{Ray, SurfaceHit};
 use glint_brdf::frame::orthonormal_basis;
 
 /// Which integrator.
@@ -165,14 +165,28 @@ pub fn power_heuristic(pdf_this: f64, pdf_other: f64) -> f64 {
 
 /// A local shading frame: z the shading normal, x along ∂p/∂u.
 #[derive(Clone, Copy, Debug)]
-struct Frame {
-    t: DVec3,
-    b: DVec3,
-    n: DVec3,
+pub(crate) struct Frame {
+    pub(crate) t: DVec3,
+    pub(crate) b: DVec3,
+    pub(crate) n: DVec3,
 }
 
 impl Frame {
-    fn new(n: DVec3, dpdu: DVec3) -> Self {
+    /// Two-sided shading: the geometric normal and the shading frame turned to face the side
+    /// a ray travelling along `direction` arrives from.
+    pub(crate) fn facing(surface: &SurfaceHit, direction: DVec3) -> (DVec3, Self) {
+        let facing = if direction.dot(surface.geometric_normal) > 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        (
+            surface.geometric_normal * facing,
+            Self::new(surface.shading_normal * facing, surface.dpdu),
+        )
+    }
+
+    pub(crate) fn new(n: DVec3, dpdu: DVec3) -> Self {
         let t = dpdu - n * n.dot(dpdu);
         let t = if t.length_squared() > 1e-24 * dpdu.length_squared().max(1e-300) && t.is_finite() {
             t.normalize()
@@ -185,7 +199,7 @@ impl Frame {
             n,
         }
     }
-    fn to_local(self, w: DVec3) -> DVec3 {
+    pub(crate) fn to_local(self, w: DVec3) -> DVec3 {
         DVec3::new(w.dot(self.t), w.dot(self.b), w.dot(self.n))
     }
     fn to_world(self, w: DVec3) -> DVec3 {
@@ -379,14 +393,7 @@ pub fn radiance(
             break;
         }
         let material = &scene.materials[primitive.material as usize];
-        // Two-sided shading: the frame faces the side the ray arrives from.
-        let facing = if ray.direction.dot(surface.geometric_normal) > 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        let geometric_normal = surface.geometric_normal * facing;
-        let frame = Frame::new(surface.shading_normal * facing, surface.dpdu);
+        let (geometric_normal, frame) = Frame::facing(&surface, ray.direction);
         let wi_world = -ray.direction;
         let wi = frame.to_local(wi_world);
         if let Material::Mirror(mirror) = material {

@@ -88,6 +88,7 @@ pub mod limits;
 pub mod material;
 pub mod mesh;
 pub mod mirror_check;
+pub mod plan;
 pub mod sampler;
 pub mod scene;
 pub mod scene_file;

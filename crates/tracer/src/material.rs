@@ -72,6 +72,9 @@ pub struct GlintMaterial {
     /// Texture repetitions per unit of the surface's (u, v): the particles' unit square is
     /// 1/scale of the surface parameter square.
     pub uv_scale: f64,
+    /// Whether the scene's prior run chooses the tree's `expected_footprint_area` (see
+    /// [`crate::plan`]); false when the scene file sets it.
+    pub plan_footprint_area: bool,
 }
 
 impl GlintMaterial {
@@ -96,6 +99,7 @@ impl GlintMaterial {
         Ok(Self {
             brdf: Arc::new(DiscreteBrdf::new(parameters)?),
             uv_scale: self.uv_scale,
+            plan_footprint_area: self.plan_footprint_area,
         })
     }
 }
@@ -355,7 +359,7 @@ impl Material {
     }
 
     /// The material with every glint part replaced by `rebuild` of it (other parts cloned).
-    fn map_glints(
+    pub(crate) fn map_glints(
         &self,
         rebuild: &dyn Fn(&GlintMaterial) -> Result<GlintMaterial, glint_brdf::BrdfError>,
     ) -> Result<Self, glint_brdf::BrdfError> {
@@ -369,6 +373,20 @@ impl Material {
             ),
             other => other.clone(),
         })
+    }
+
+    /// The `expected_footprint_area` of each glint part, in order (Eq. 11's plan, see
+    /// [`crate::plan`]); empty for materials without glints.
+    #[must_use]
+    pub fn expected_footprint_areas(&self) -> Vec<f64> {
+        match self {
+            Self::Glint(g) => vec![g.brdf.parameters().expected_footprint_area],
+            Self::Mix(parts) => parts
+                .iter()
+                .flat_map(|(_, m)| m.expected_footprint_areas())
+                .collect(),
+            _ => Vec::new(),
+        }
     }
 
     /// Whether any part of the material is a glint material.
@@ -540,6 +558,7 @@ mod tests {
         let glint = Material::Glint(GlintMaterial {
             brdf: Arc::new(DiscreteBrdf::new(parameters).unwrap()),
             uv_scale: 1.0,
+            plan_footprint_area: false,
         });
         vec![
             Material::Diffuse(Texture::Constant(DVec3::new(0.8, 0.5, 0.2))),

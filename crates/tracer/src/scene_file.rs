@@ -994,6 +994,7 @@ impl Builder<'_> {
         Ok(Material::Glint(GlintMaterial {
             brdf: Arc::new(brdf),
             uv_scale,
+            plan_footprint_area: g.expected_footprint_area.is_none(),
         }))
     }
 
@@ -1500,14 +1501,17 @@ impl Builder<'_> {
             materials.push(Material::Diffuse(Texture::Constant(DVec3::ZERO)));
             material_names.push(String::from("(none)"));
         }
-        Ok(Scene {
+        let mut scene = Scene {
             accelerator: Accelerator::new(primitives, meshes),
             materials,
             material_names,
             lights,
             camera,
             settings,
-        })
+        };
+        // Eq. 11's prior run plans the glint trees' footprint area from this scene's view.
+        crate::plan::apply(&mut scene).map_err(|e| self.brdf_error("materials", &e))?;
+        Ok(scene)
     }
 }
 

@@ -1,0 +1,422 @@
+//! Eq. 11's prior run: the footprint area each glint material's count tree is built for.
+//!
+//! A node is split in space when E[A(query)]/A(node) < E[σ(query)]/σ(node) (Eq. 11), so the
+//! tree serves queries of the planned area best. The paper takes E[A] from "a brief prior run
+//! of the algorithm". A query much smaller than planned descends through directional splits it
+//! cannot use and then through every spatial level down to its size; one much larger stops on
+//! small boxes it covers only in part. On `stained_glass_closeup` (footprints near 5·10⁻¹⁰ of
+//! the particles' square) the library's default of 10⁻⁶ costs 108 nodes per traversed query.
+//!
+//! The prior run here traces one camera ray per cell of a grid of at most [`PLAN_GRID`]² over
+//! the image, at the scene file's resolution and footprint scale, from the camera at its first
+//! keyframe, through perfect mirrors. At each glint hit it takes two query directions: toward
+//! a light (one picked uniformly) and one drawn from the material's sampler. Eq. 11 compares
+//! geometric solid angles where the particles' density is far from uniform, so the mean
+//! footprint area is not always the best plan (on `stained_glass` a plan 4⁶ times smaller
+//! visits half the nodes). The run therefore counts the nodes those queries visit in trees
+//! built for other areas: from the geometric mean of the footprints it moves by factors of 4
+//! while the count falls by [`PLAN_GAIN`] or more (within [`PLAN_STEPS`]). This is the paper's prior run, used to
+//! measure the cost the plan is meant to lower; it adds 0.1–1 s to loading a scene.
+//!
+//! The plan selects which particle set (of the same distribution) the scene renders, so it
+//! depends only on the scene file: not on `--resolution`, `--spp`, `--frame` or
+//! `--glint-footprints`, and it is deterministic. A material with `expected_footprint_area`
+//! in the scene file keeps that area.
+
+use glam::{DVec2, DVec3};
+use glint_brdf::{DiscreteBrdf, Footprint, QueryScratch};
+
+use crate::camera::{RayDifferential, texture_footprint};
+use crate::differentials::{normal_derivatives, reflect, reflected_differential};
+use crate::integrator::{Frame, offset_origin};
+use crate::material::{GlintMaterial, Material};
+use crate::sampler::PixelSampler;
+use crate::scene::Scene;
+use crate::shape::Ray;
+
+/// Camera rays per image axis of the prior run, at most (one per pixel for smaller images).
+pub const PLAN_GRID: u32 = 48;
+
+/// The plans the prior run may choose: the geometric mean of the footprint areas (rounded to a
+/// power of two) times 4^k for k in this range. A factor of 4 is one spatial level of the tree.
+pub const PLAN_STEPS: std::ops::RangeInclusive<i32> = -10..=4;
+
+/// The share of the prior run's node visits a step must save to be taken: smaller savings are
+/// within the sampling noise of a few hundred queries, and would make the plan of a material
+/// seen in few pixels a matter of chance.
+pub const PLAN_GAIN: f64 = 0.05;
+
+/// Mirror bounces the prior run follows after the camera ray, at most.
+const PLAN_MIRROR_BOUNCES: u32 = 8;
+
+/// The seed of the prior run's samples (fixed: the plan must not vary between runs).
+const PLAN_SEED: u64 = 0x11;
+
+/// One glint hit of the prior run.
+#[derive(Clone, Copy, Debug)]
+pub struct PlanHit {
+    /// The material's index in the scene.
+    pub material: usize,
+    /// The hit's (u, v) and its derivatives per pixel, before the material's `uv_scale`.
+    pub uv: DVec2,
+    /// (∂(u,v)/∂x, ∂(u,v)/∂y).
+    pub duv: (DVec2, DVec2),
+    /// The direction toward the viewer, in the shading frame.
+    pub wi: DVec3,
+    /// A direction toward a light, in the shading frame, if one was found above the surface.
+    pub to_light: Option<DVec3>,
+    /// Four uniforms for a draw from the material's sampler.
+    pub u_sampler: [f64; 4],
+}
+
+impl PlanHit {
+    /// The footprint for a glint part with texture scale `uv_scale`, if it is valid.
+    fn footprint(&self, uv_scale: f64) -> Option<Footprint> {
+        let s = uv_scale;
+        let footprint = Footprint::new(self.uv * s, self.duv.0 * s, self.duv.1 * s).ok()?;
+        (footprint.area() > 0.0 && footprint.area().is_finite()).then_some(footprint)
+    }
+}
+
+/// The prior run's glint hits: camera rays through a grid of pixel centres at the scene
+/// file's settings, continued through perfect mirrors.
+#[must_use]
+pub fn prior_run(scene: &Scene) -> Vec<PlanHit> {
+    let mut hits = Vec::new();
+    if !scene.has_glints() {
+        return hits;
+    }
+    let settings = &scene.settings;
+    let first_frame = scene.camera.keyframes()[0].frame;
+    let view = scene
+        .camera
+        .view(first_frame, settings.width, settings.height);
+    let columns = settings.width.min(PLAN_GRID);
+    let rows = settings.height.min(PLAN_GRID);
+    for row in 0..rows {
+        for column in 0..columns {
+            let film = DVec2::new(
+                (f64::from(column) + 0.5) * f64::from(settings.width) / f64::from(columns),
+                (f64::from(row) + 0.5) * f64::from(settings.height) / f64::from(rows),
+            );
+            let differential = view.ray_differential(film, settings.footprint_scale);
+            let mut sampler = PixelSampler::new(PLAN_SEED, column, row, 0);
+            if let Some(hit) = follow(scene, differential, &mut sampler) {
+                hits.push(hit);
+            }
+        }
+    }
+    hits
+}
+
+/// Follows one camera ray through perfect mirrors to the first other surface: a [`PlanHit`]
+/// if it has glints and a footprint.
+fn follow(
+    scene: &Scene,
+    mut differential: RayDifferential,
+    sampler: &mut PixelSampler,
+) -> Option<PlanHit> {
+    for _ in 0..=PLAN_MIRROR_BOUNCES {
+        let ray = differential.ray;
+        let hit = scene.intersect(&ray, f64::INFINITY)?;
+        let primitive = scene.accelerator.primitives()[hit.primitive];
+        if primitive.light.is_some() {
+            return None;
+        }
+        let surface = hit.surface;
+        let (geometric_normal, frame) = Frame::facing(&surface, ray.direction);
+        let material = primitive.material as usize;
+        match &scene.materials[material] {
+            Material::Mirror(_) => {
+                let direction = reflect(ray.direction, frame.n);
+                if direction.dot(geometric_normal) <= 0.0 {
+                    return None;
+                }
+                let reflected = Ray {
+                    origin: offset_origin(surface.point, geometric_normal, direction),
+                    direction,
+                };
+                let meshes = scene.accelerator.meshes();
+                let dn = normal_derivatives(&primitive.geometry, meshes, &surface);
+                differential = reflected_differential(&surface, dn, &differential, reflected)?;
+            }
+            glints if glints.has_glints() => {
+                let duv = texture_footprint(&surface, &differential)?;
+                let u_pick = sampler.next_1d();
+                let u_light = sampler.next_2d();
+                let to_light = (!scene.lights.is_empty())
+                    .then(|| {
+                        let pick = ((u_pick * scene.lights.len() as f64) as usize)
+                            .min(scene.lights.len() - 1);
+                        scene.lights[pick].sample(surface.point, u_light)
+                    })
+                    .flatten()
+                    .map(|sample| frame.to_local(sample.direction))
+                    .filter(|w| w.z > 0.0);
+                let [a, b] = sampler.next_2d();
+                let [c, d] = sampler.next_2d();
+                return Some(PlanHit {
+                    material,
+                    uv: surface.uv,
+                    duv,
+                    wi: frame.to_local(-ray.direction),
+                    to_light,
+                    u_sampler: [a, b, c, d],
+                });
+            }
+            _ => return None,
+        }
+    }
+    None
+}
+
+/// The area of the prior run's footprints on `glint` (geometric mean, rounded to a power of
+/// two), or `None` if it saw none.
+#[must_use]
+pub fn mean_area(glint: &GlintMaterial, hits: &[&PlanHit]) -> Option<f64> {
+    let logs: Vec<f64> = hits
+        .iter()
+        .filter_map(|hit| hit.footprint(glint.uv_scale))
+        .map(|f| f.area().log2())
+        .collect();
+    (!logs.is_empty()).then(|| {
+        (logs.iter().sum::<f64>() / logs.len() as f64)
+            .round()
+            .exp2()
+    })
+}
+
+/// Tree nodes visited by the prior run's queries on `brdf` (queries `glint` would skip as
+/// negligible are left out: they visit nothing whatever the plan).
+#[must_use]
+pub fn nodes_visited(
+    brdf: &DiscreteBrdf,
+    glint: &GlintMaterial,
+    hits: &[&PlanHit],
+    scratch: &mut QueryScratch,
+) -> u64 {
+    let mut nodes = 0;
+    for hit in hits {
+        let Some(footprint) = hit.footprint(glint.uv_scale) else {
+            continue;
+        };
+        let sampled = glint.brdf.sample_direction(hit.wi, hit.u_sampler);
+        for wo in [hit.to_light, sampled].into_iter().flatten() {
+            let skipped = glint
+                .brdf
+                .at(&footprint, scratch)
+                .evaluate(hit.wi, wo)
+                .negligible;
+            if skipped.is_none() {
+                nodes += u64::from(
+                    brdf.at(&footprint, scratch)
+                        .evaluate(hit.wi, wo)
+                        .nodes_visited,
+                );
+            }
+        }
+    }
+    nodes
+}
+
+/// The plan for `glint` from the prior run's hits on it: starting from the mean footprint
+/// area, the area moves by factors of 4 (one spatial level) while each step saves at least
+/// [`PLAN_GAIN`] of the nodes the queries visit, within [`PLAN_STEPS`]. `None` if the run saw none of its footprints.
+///
+/// # Errors
+/// A candidate tree that cannot be built (never for a material that built once).
+pub fn planned_area(
+    glint: &GlintMaterial,
+    hits: &[&PlanHit],
+) -> Result<Option<f64>, glint_brdf::BrdfError> {
+    let Some(mean) = mean_area(glint, hits) else {
+        return Ok(None);
+    };
+    let mut scratch = QueryScratch::default();
+    let mut cost = |k: i32| -> Result<u64, glint_brdf::BrdfError> {
+        let candidate = glint.rebuilt(|p| {
+            p.expected_footprint_area = mean * 4f64.powi(k);
+            p.negligible_count = 0.0;
+        })?;
+        Ok(nodes_visited(&candidate.brdf, glint, hits, &mut scratch))
+    };
+    let (mut best, mut fewest) = (0, cost(0)?);
+    for direction in [-1, 1] {
+        let mut k = best + direction;
+        while PLAN_STEPS.contains(&k) {
+            let nodes = cost(k)?;
+            if nodes as f64 > (1.0 - PLAN_GAIN) * fewest as f64 {
+                break;
+            }
+            (best, fewest) = (k, nodes);
+            k += direction;
+        }
+        if best != 0 {
+            break;
+        }
+    }
+    Ok(Some(mean * 4f64.powi(best)))
+}
+
+/// Sets the `expected_footprint_area` of every glint part whose scene file left it open
+/// ([`GlintMaterial::plan_footprint_area`]) to its plan from the scene's prior run (parts the
+/// run never saw keep the library's default).
+///
+/// # Errors
+/// A tree that cannot be rebuilt (never for materials that built once).
+pub fn apply(scene: &mut Scene) -> Result<(), glint_brdf::BrdfError> {
+    let hits = prior_run(scene);
+    let mut materials = std::mem::take(&mut scene.materials);
+    for (index, material) in materials.iter_mut().enumerate() {
+        let on_it: Vec<&PlanHit> = hits.iter().filter(|h| h.material == index).collect();
+        if on_it.is_empty() {
+            continue;
+        }
+        *material = material.map_glints(&|glint| {
+            if !glint.plan_footprint_area {
+                return Ok(glint.clone());
+            }
+            match planned_area(glint, &on_it)? {
+                Some(area) if area != glint.brdf.parameters().expected_footprint_area => {
+                    glint.rebuilt(|p| p.expected_footprint_area = area)
+                }
+                _ => Ok(glint.clone()),
+            }
+        })?;
+    }
+    scene.materials = materials;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene_file::parse_scene;
+    use std::path::Path;
+
+    /// A camera straight above a glint floor; `extra` goes into the material.
+    fn floor_scene(height: f64, extra: &str) -> Scene {
+        let text = format!(
+            r#"
+            [render]
+            resolution = [32, 32]
+            spp = 1
+            integrator = "direct"
+
+            [camera]
+            position = [0.0, {height}, 0.0]
+            look_at = [0.0, 0.0, 0.0]
+            up = [0.0, 0.0, -1.0]
+            fov = 10
+
+            [materials.floor]
+            type = "glint"
+            alpha = 0.05
+            particles = 1e8
+            gamma = 1.0
+            uv_scale = 0.5
+            {extra}
+
+            [[shapes]]
+            type = "rectangle"
+            center = [0.0, 0.0, 0.0]
+            u = [4.0, 0.0, 0.0]
+            v = [0.0, 0.0, -4.0]
+            material = "floor"
+
+            [[lights]]
+            type = "sphere"
+            center = [0.3, 2.0, 0.2]
+            radius = 0.1
+            power = 10.0
+            "#
+        );
+        parse_scene(&text, Path::new("plan.toml")).unwrap()
+    }
+
+    fn glint(scene: &Scene) -> &GlintMaterial {
+        match &scene.materials[0] {
+            Material::Glint(g) => g,
+            other => panic!("expected the glint floor, got {other:?}"),
+        }
+    }
+
+    /// The footprints the prior run records are the pixels' areas on the floor: seen from
+    /// straight above at height h, a pixel of a 10° field of view over 32 pixels covers
+    /// (2h·tan 5°/32)² m², and the particles' square is 4 m / 0.5 = 8 m wide. Near the image
+    /// centre the rays are almost vertical, so the geometric mean is within 1% of that.
+    #[test]
+    fn footprints_are_the_pixels_on_the_floor() {
+        for height in [0.5, 3.0] {
+            let scene = floor_scene(height, "");
+            let hits = prior_run(&scene);
+            assert_eq!(hits.len(), 32 * 32, "every camera ray meets the floor");
+            let g = glint(&scene);
+            let pixel = 2.0 * height * 5f64.to_radians().tan() / 32.0;
+            let expected = (pixel / 8.0).powi(2);
+            let logs: Vec<f64> = hits
+                .iter()
+                .map(|h| h.footprint(g.uv_scale).unwrap().area().ln())
+                .collect();
+            let mean = (logs.iter().sum::<f64>() / logs.len() as f64).exp();
+            assert!(
+                (mean / expected - 1.0).abs() < 0.01,
+                "height {height}: mean footprint {mean:e}, a pixel {expected:e}"
+            );
+            let hits: Vec<&PlanHit> = hits.iter().collect();
+            let rounded = mean_area(g, &hits).unwrap();
+            assert_eq!(rounded, mean.log2().round().exp2());
+        }
+    }
+
+    /// The plan is a local minimum of the prior run's node visits over the steps of 4: no
+    /// neighbouring area saves PLAN_GAIN of them, and it visits no more nodes than the mean
+    /// footprint area does.
+    #[test]
+    fn the_plan_is_where_the_prior_run_visits_fewest_nodes() {
+        let scene = floor_scene(0.5, "");
+        let g = glint(&scene);
+        let planned = g.brdf.parameters().expected_footprint_area;
+        let hits = prior_run(&scene);
+        let hits: Vec<&PlanHit> = hits.iter().collect();
+        let mean = mean_area(g, &hits).unwrap();
+        let mut scratch = QueryScratch::default();
+        let mut cost = |area: f64| {
+            let candidate = g
+                .rebuilt(|p| {
+                    p.expected_footprint_area = area;
+                    p.negligible_count = 0.0;
+                })
+                .unwrap();
+            nodes_visited(&candidate.brdf, g, &hits, &mut scratch) as f64
+        };
+        let at_plan = cost(planned);
+        assert!(at_plan > 0.0, "the prior run traverses the tree");
+        assert!(
+            at_plan <= cost(mean),
+            "the plan is no worse than the mean area"
+        );
+        for neighbour in [planned / 4.0, planned * 4.0] {
+            assert!(
+                cost(neighbour) > (1.0 - PLAN_GAIN) * at_plan,
+                "a step to {neighbour:e} saves more than {PLAN_GAIN} of {at_plan} nodes"
+            );
+        }
+    }
+
+    /// The plan depends on the scene file alone: loading twice gives the same trees, and a
+    /// material that sets `expected_footprint_area` keeps it.
+    #[test]
+    fn plans_are_reproducible_and_scene_files_may_fix_them() {
+        let a = floor_scene(0.5, "");
+        let b = floor_scene(0.5, "");
+        assert_eq!(glint(&a).brdf.parameters(), glint(&b).brdf.parameters());
+        assert!(glint(&a).plan_footprint_area);
+        let fixed = floor_scene(0.5, "expected_footprint_area = 3e-5");
+        assert_eq!(
+            glint(&fixed).brdf.parameters().expected_footprint_area,
+            3e-5
+        );
+        assert!(!glint(&fixed).plan_footprint_area);
+    }
+}
