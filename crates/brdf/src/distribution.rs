@@ -115,6 +115,31 @@ impl Microfacet {
         }
     }
 
+    /// D(h)(h·n)/(4 ω_i·h), the density of ω_o = reflect(ω_i, h) for normals h drawn from
+    /// D(h)(h·n), from the unnormalized half vector H = ω_i + ω_o (0 unless H.z > 0 and
+    /// ω_i·H > 0). No square root: with h = H/|H|, D(h) = e(H)·|H|⁴/(π α_x α_y H_z⁴), where
+    /// the slope term e depends on H's direction only, and (h·n)/(ω_i·h) = H_z/(ω_i·H), so the
+    /// density is e(H)·(H·H)²/(4π α_x α_y H_z³ (ω_i·H)).
+    #[inline]
+    #[must_use]
+    pub fn reflected_density(&self, wi: DVec3, half: DVec3) -> f64 {
+        let cos = wi.dot(half);
+        if !(half.z > 0.0 && cos > 0.0) {
+            return 0.0;
+        }
+        let z2 = half.z * half.z;
+        let slope2 = (half.x * half.x / (self.alpha_x * self.alpha_x)
+            + half.y * half.y / (self.alpha_y * self.alpha_y))
+            / z2;
+        let slope_term = match self.kind {
+            DistributionKind::Beckmann => (-slope2).exp(),
+            DistributionKind::Ggx => 1.0 / ((1.0 + slope2) * (1.0 + slope2)),
+        };
+        let length2 = half.length_squared();
+        slope_term * length2 * length2
+            / (4.0 * std::f64::consts::PI * self.alpha_x * self.alpha_y * z2 * half.z * cos)
+    }
+
     /// p(m) = D(m)(m·n): the density of particle normals, which integrates to 1.
     #[must_use]
     pub fn particle_density(&self, m: DVec3) -> f64 {
@@ -394,5 +419,37 @@ mod tests {
         assert!(Microfacet::new(DistributionKind::Ggx, 0.0, 0.1).is_err());
         assert!(Microfacet::new(DistributionKind::Ggx, 0.1, f64::NAN).is_err());
         assert!(Microfacet::new(DistributionKind::Beckmann, 1.5, 0.1).is_err());
+    }
+
+    /// The square-root-free density against its definition with the normalized half vector,
+    /// for any length of H.
+    #[test]
+    fn reflected_density_is_d_times_the_jacobian() {
+        for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+            let d = Microfacet::new(kind, 0.3, 0.1).unwrap();
+            for (wi, wo) in [
+                (DVec3::new(0.2, -0.1, 0.9), DVec3::new(-0.3, 0.2, 0.8)),
+                (DVec3::new(0.9, 0.1, 0.05), DVec3::new(-0.5, 0.4, 0.3)),
+                (DVec3::Z, DVec3::new(0.1, 0.0, 1.0)),
+            ] {
+                let (wi, wo) = (wi.normalize(), wo.normalize());
+                let h = (wi + wo).normalize();
+                let expected = d.d(h) * h.z / (4.0 * wi.dot(h));
+                for scale in [1.0, 1e-3, 7.0] {
+                    let got = d.reflected_density(wi, scale * (wi + wo));
+                    assert!(
+                        (got - expected).abs() <= 1e-13 * expected,
+                        "{kind:?}: {got} against {expected}"
+                    );
+                }
+            }
+            // Below the horizon, and facing away from ω_i: 0.
+            assert_eq!(
+                d.reflected_density(DVec3::Z, DVec3::new(0.3, 0.0, -0.1)),
+                0.0
+            );
+            let wi = DVec3::new(0.8, 0.0, 0.6);
+            assert_eq!(d.reflected_density(wi, DVec3::new(-0.9, 0.0, 0.1)), 0.0);
+        }
     }
 }

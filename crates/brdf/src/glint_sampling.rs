@@ -185,11 +185,7 @@ impl GlintSampler {
             if w.z <= 0.0 {
                 continue;
             }
-            let h = (wi + w).normalize();
-            let cos = wi.dot(h);
-            if cos > 0.0 {
-                sum += weight * distribution.d(h) * h.z / (4.0 * cos);
-            }
+            sum += weight * distribution.reflected_density(wi, wi + w);
         }
         sum
     }
