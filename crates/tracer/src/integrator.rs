@@ -525,13 +525,20 @@ pub fn radiance(
             origin: offset_origin(surface.point, geometric_normal, direction),
             direction,
         };
+        // f goes before the pdf (a quadrature over the cone for glints): where f is 0, as for
+        // most glint queries, the sample adds nothing and the pdf is not needed.
         if depth + 1 >= max_depth {
-            // The last bounce: only emission along this ray can still count, so the pdf (a QMC
-            // convolution for glints) and f (a tree query) are computed only when there is some.
+            // The last bounce: only emission along this ray can still count, so f (a tree
+            // query) and the pdf are computed only when there is some.
             state.rays += 1;
             let next = scene.intersect(&ray, f64::INFINITY);
             if weighting.finds_emission(scene, &ray, next.as_ref(), cones.as_ref()) {
-                let pdf = material.pdf(wi, wo, surface.uv);
+                let f = material.eval(wi, wo, &mut ctx);
+                let pdf = if f == DVec3::ZERO {
+                    0.0
+                } else {
+                    material.pdf(wi, wo, surface.uv)
+                };
                 if pdf > 0.0 && pdf.is_finite() {
                     let previous = Some((pdf, surface.point));
                     let le = weighting.emitted_along(
@@ -541,10 +548,13 @@ pub fn radiance(
                         previous,
                         cones.as_ref(),
                     );
-                    let f = material.eval(wi, wo, &mut ctx);
                     radiance += throughput * f * le * (wo.z / pdf);
                 }
             }
+            break;
+        }
+        let f = material.eval(wi, wo, &mut ctx);
+        if f == DVec3::ZERO {
             break;
         }
         let pdf = material.pdf(wi, wo, surface.uv);
@@ -554,7 +564,6 @@ pub fn radiance(
         previous = Some((pdf, surface.point));
         previous_cones = cones;
         differential = None;
-        let f = material.eval(wi, wo, &mut ctx);
         throughput *= f * (wo.z / pdf);
         if !throughput.is_finite() {
             // An overflow (or 0·∞) on the path: the sample has no meaningful value; the film
