@@ -76,6 +76,37 @@ fn same_query_is_bit_identical_in_any_thread_and_order() {
     assert!(forward.iter().any(|r| r.count > 0.0));
 }
 
+/// A scratch remembers split counts across queries (and trees): neighbouring and repeated
+/// footprints, queried through one scratch with two trees interleaved, answer exactly as each
+/// does with a fresh scratch, nodes visited included.
+#[test]
+fn remembered_split_counts_change_no_answer() {
+    let trees = [
+        beckmann_tree(0.2, 100_000_000, 5, 0.0, MultinomialMode::Exact),
+        beckmann_tree(0.1, 100_000_000, 6, 0.1, MultinomialMode::Exact),
+    ];
+    let conic = near_specular_conic(2.0);
+    let mut rng = SplitMix64::new(21);
+    // Clusters of footprints around a few points, as a pixel's samples and its neighbours.
+    let footprints: Vec<Footprint> = (0..300)
+        .map(|i| {
+            let centre = DVec2::new(0.1 + 0.2 * f64::from(i % 4), 0.3 + 0.1 * f64::from(i % 3));
+            let jitter = DVec2::new(rng.uniform(), rng.uniform()) * 0.03;
+            square(centre + jitter, 1e-3)
+        })
+        .collect();
+    let mut shared = QueryScratch::new();
+    let mut found = 0.0;
+    for (i, footprint) in footprints.iter().enumerate() {
+        let tree = &trees[i % 2];
+        let warm = tree.query(footprint, &conic, &mut shared);
+        let fresh = tree.query(footprint, &conic, &mut QueryScratch::new());
+        assert_eq!(warm, fresh, "query {i}");
+        found += warm.count;
+    }
+    assert!(found > 0.0, "the queries find particles");
+}
+
 /// Exact mode: two footprints that tile a third count exactly as many particles.
 #[test]
 fn exact_counts_are_additive() {

@@ -231,7 +231,11 @@ impl CountTree {
         let node = &parent.node;
         // The query's answers for a child (the box at `box_min` of `box_level`, the cell),
         // the parent's in the dimension the split keeps.
-        let mut answer = |spatial: bool, box_min: DVec2, box_level: u32, cell: &DirectionalCell| {
+        let answer = |memo: &mut QueryMemo,
+                      spatial: bool,
+                      box_min: DVec2,
+                      box_level: u32,
+                      cell: &DirectionalCell| {
             if spatial {
                 let overlap = memo.overlap_box(box_min, box_level, footprint);
                 (overlap, parent.directional)
@@ -250,17 +254,17 @@ impl CountTree {
             };
         // Cached or coloured splits: all four counts are drawn (particle areas need them all,
         // a Dirichlet draw over them).
-        let mut all_drawn = |children: &[Node; 4], spatial: bool| {
+        let mut all_drawn = |memo: &mut QueryMemo, children: &[Node; 4], spatial: bool| {
             for child in children.iter().filter(|child| child.count > 0) {
                 tested += 1;
-                let answers = answer(spatial, child.box_min, child.box_level, &child.cell);
+                let answers = answer(memo, spatial, child.box_min, child.box_level, &child.cell);
                 if meets(answers) {
                     queue.push(queued(*child, answers));
                 }
             }
         };
         if let Some((children, spatial)) = self.top_levels.get(node) {
-            all_drawn(children, *spatial);
+            all_drawn(memo, children, *spatial);
             return tested;
         }
         let spatial = self.splits_in_space(node);
@@ -273,20 +277,34 @@ impl CountTree {
                 children[k] = child;
                 k += 1;
             });
-            all_drawn(&children, spatial);
+            all_drawn(memo, &children, spatial);
             return tested;
         }
         let split = (!spatial).then(|| self.directional_split(&node.cell));
         let split = split.as_deref();
-        let mut counts = self.split_counts(node, split);
+        let mut counts = memo
+            .remembered_counts(self, node)
+            .unwrap_or_else(|| self.split_counts(node, split));
         for pair in 0..2 {
             if counts.totals[pair] == 0 {
                 continue;
             }
             let children = [2 * pair, 2 * pair + 1];
             let pair_answers = children.map(|j| match split {
-                None => answer(true, quarter_min(node, j), node.box_level + 1, &node.cell),
-                Some(split) => answer(false, node.box_min, node.box_level, &split.children[j]),
+                None => answer(
+                    memo,
+                    true,
+                    quarter_min(node, j),
+                    node.box_level + 1,
+                    &node.cell,
+                ),
+                Some(split) => answer(
+                    memo,
+                    false,
+                    node.box_min,
+                    node.box_level,
+                    &split.children[j],
+                ),
             });
             if !(meets(pair_answers[0]) || meets(pair_answers[1])) {
                 tested += counts.undivided_visits(pair);
@@ -303,6 +321,7 @@ impl CountTree {
                 }
             }
         }
+        memo.remember_counts(self, node, counts);
         tested
     }
 

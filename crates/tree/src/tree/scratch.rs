@@ -10,15 +10,16 @@ use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic};
 
 use super::CountTree;
-use super::particles::{LeafParticle, Node, box_size_at};
+use super::particles::{LeafParticle, Node, PairCounts, box_size_at};
 use super::query::QueuedNode;
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
 use crate::node::NodeId;
 
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
-/// first query allocates 66 KB of memo tables (answers that recur within a query, and split
-/// probabilities that recur across queries, of any material: one scratch serves them all).
+/// first query allocates 360 KB of memo tables (answers that recur within a query, and split
+/// probabilities and split counts that recur across queries, of any material: one scratch
+/// serves them all).
 #[derive(Debug, Default)]
 pub struct QueryScratch {
     pub(super) queue: Vec<QueuedNode>,
@@ -45,7 +46,9 @@ impl QueryScratch {
 /// It also keeps, across queries, the split probabilities of the directional cells below the
 /// material's table of splits that leaf particles descend through: a material's queries keep
 /// meeting the same few of those cells, whose solid angles and density values cost more than
-/// the rest of the descent step.
+/// the rest of the descent step. And it keeps the split counts of the nodes below the tree's
+/// cached top levels (with the pair divisions drawn): a pixel's samples and its neighbours'
+/// descend through the same nodes, whose binomial draws cost more than the rest of a split.
 #[derive(Debug, Default)]
 pub(super) struct QueryMemo {
     classifications: Vec<ClassificationEntry>,
@@ -54,6 +57,16 @@ pub(super) struct QueryMemo {
     boxes: Vec<BoxEntry>,
     generation: u32,
     splits: Vec<SplitEntry>,
+    counts: Vec<CountsEntry>,
+}
+
+/// A node's split counts (its identity) in a tree (the tree's identity), with the pair
+/// divisions drawn so far.
+#[derive(Clone, Copy, Debug)]
+struct CountsEntry {
+    tree: u64,
+    id: NodeId,
+    counts: Option<PairCounts>,
 }
 
 /// The split probabilities of a directional cell (its label) of a tree (its identity).
@@ -107,6 +120,17 @@ const BOX_MEMO_BITS: u32 = 8;
 
 /// log₂ of the entries of the split table (1024, 48 KB).
 const SPLIT_MEMO_BITS: u32 = 10;
+/// log₂ of the entries of the table of split counts (2048, 295 KB).
+const COUNTS_MEMO_BITS: u32 = 11;
+
+/// The slot of node `id` of tree `tree` in the table of split counts.
+#[inline]
+fn counts_slot(tree: u64, id: NodeId) -> usize {
+    memo_slot(
+        id.0 as u64 ^ (id.0 >> 64) as u64 ^ tree.rotate_left(47),
+        COUNTS_MEMO_BITS,
+    )
+}
 
 /// The slot of a 64-bit key in a table of 2^`bits` entries (Fibonacci hashing).
 #[inline]
@@ -145,6 +169,12 @@ impl QueryMemo {
         probabilities: [0.0; 4],
     };
 
+    const NO_COUNTS: CountsEntry = CountsEntry {
+        tree: 0,
+        id: NodeId(0),
+        counts: None,
+    };
+
     /// Forgets the previous query's answers (allocates the tables on first use).
     pub(super) fn begin_query(&mut self) {
         if self.classifications.is_empty() {
@@ -153,6 +183,7 @@ impl QueryMemo {
             self.with_areas = vec![Self::NO_NODE; 1 << AREAS_MEMO_BITS];
             self.boxes = vec![Self::NO_BOX; 1 << BOX_MEMO_BITS];
             self.splits = vec![Self::NO_SPLIT; 1 << SPLIT_MEMO_BITS];
+            self.counts = vec![Self::NO_COUNTS; 1 << COUNTS_MEMO_BITS];
         }
         self.generation = self.generation.wrapping_add(1);
         if self.generation == 0 {
@@ -270,6 +301,29 @@ impl QueryMemo {
             answer,
         };
         answer
+    }
+
+    /// The split counts of `node` in `tree` as an earlier query left them (with the pair
+    /// divisions it drew), if they are still remembered. Neighbouring pixels' queries, and a
+    /// pixel's samples, descend through the same nodes.
+    #[inline]
+    pub(super) fn remembered_counts(&self, tree: &CountTree, node: &Node) -> Option<PairCounts> {
+        let entry = self.counts.get(counts_slot(tree.id, node.id))?;
+        entry
+            .counts
+            .filter(|_| entry.tree == tree.id && entry.id == node.id)
+    }
+
+    /// Remembers `counts`, the split counts of `node` in `tree`, for later queries.
+    #[inline]
+    pub(super) fn remember_counts(&mut self, tree: &CountTree, node: &Node, counts: PairCounts) {
+        if let Some(entry) = self.counts.get_mut(counts_slot(tree.id, node.id)) {
+            *entry = CountsEntry {
+                tree: tree.id,
+                id: node.id,
+                counts: Some(counts),
+            };
+        }
     }
 
     /// The split probabilities of `cell` (whose `children` the caller has) in `tree`, for a

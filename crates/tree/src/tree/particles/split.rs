@@ -216,6 +216,7 @@ impl CountTree {
 
 /// A split's counts as the totals of the pairs of children (0, 1) and (2, 3), each pair
 /// divided between its children on demand (see `CountTree::split_counts`).
+#[derive(Clone, Copy, Debug)]
 pub(in crate::tree) struct PairCounts {
     pub(in crate::tree) totals: [u64; 2],
     pairs: [PairDivision; 2],
@@ -225,11 +226,14 @@ pub(in crate::tree) struct PairCounts {
     rounds: u32,
 }
 
-/// A pair's division between its two children: drawn, or pending with draw 0 of its stream.
-#[derive(Clone, Copy)]
+/// A pair's division between its two children: drawn with the totals (small counts, all
+/// four at once), pending with draw 0 of its stream, or divided on demand (by this query or,
+/// remembered, by an earlier one).
+#[derive(Clone, Copy, Debug)]
 enum PairDivision {
     Drawn([u64; 2]),
     Pending { first_draw: u64 },
+    Divided([u64; 2]),
 }
 
 impl PairCounts {
@@ -248,13 +252,14 @@ impl PairCounts {
     }
 
     /// How many children of `pair`, which both miss the query, count as visited: the
-    /// non-empty ones when the pair's counts are drawn; otherwise its total, at most the
-    /// number of children with a positive probability (whether one of those is empty is
-    /// never drawn).
+    /// non-empty ones when the pair's counts are drawn with the totals; otherwise its total,
+    /// at most the number of children with a positive probability (a query that leaves the
+    /// pair undivided never learns whether one of those is empty, so a division remembered
+    /// from an earlier query does not change the figure).
     pub(in crate::tree) fn undivided_visits(&self, pair: usize) -> u32 {
         match self.pairs[pair] {
             PairDivision::Drawn(counts) => counts.iter().map(|&c| u32::from(c > 0)).sum(),
-            PairDivision::Pending { .. } => {
+            PairDivision::Pending { .. } | PairDivision::Divided(_) => {
                 let possible = self.probabilities[2 * pair..2 * pair + 2]
                     .iter()
                     .map(|&p| u64::from(p > 0.0))
@@ -267,12 +272,12 @@ impl PairCounts {
     /// The counts of the children of `pair` (0 or 1), drawn on the first call.
     pub(in crate::tree) fn divide(&mut self, pair: usize) -> [u64; 2] {
         match self.pairs[pair] {
-            PairDivision::Drawn(counts) => counts,
+            PairDivision::Drawn(counts) | PairDivision::Divided(counts) => counts,
             PairDivision::Pending { first_draw } => {
                 let purpose = PURPOSE_PAIR + pair as u32;
                 let mut rng = TeaRng::with_first_draw(self.key, purpose, self.rounds, first_draw);
                 let counts = divide_pair(self.totals[pair], self.probabilities, pair, &mut rng);
-                self.pairs[pair] = PairDivision::Drawn(counts);
+                self.pairs[pair] = PairDivision::Divided(counts);
                 counts
             }
         }
