@@ -77,13 +77,20 @@ fn same_query_is_bit_identical_in_any_thread_and_order() {
 }
 
 /// A scratch remembers split counts across queries (and trees): neighbouring and repeated
-/// footprints, queried through one scratch with two trees interleaved, answer exactly as each
-/// does with a fresh scratch, nodes visited included.
+/// footprints, queried through one scratch with three trees interleaved (one coloured),
+/// answer exactly as each does with a fresh scratch, nodes visited and areas included.
 #[test]
 fn remembered_split_counts_change_no_answer() {
+    let coloured = CountTreeConfig {
+        particles: 100_000_000,
+        seed: 7,
+        colour_channels: 3,
+        ..CountTreeConfig::default()
+    };
     let trees = [
         beckmann_tree(0.2, 100_000_000, 5, 0.0, MultinomialMode::Exact),
         beckmann_tree(0.1, 100_000_000, 6, 0.1, MultinomialMode::Exact),
+        CountTree::new(coloured, glint_tests::counts::beckmann_density(0.15, 0.15)).unwrap(),
     ];
     let conic = near_specular_conic(2.0);
     let mut rng = SplitMix64::new(21);
@@ -98,7 +105,7 @@ fn remembered_split_counts_change_no_answer() {
     let mut shared = QueryScratch::new();
     let mut found = 0.0;
     for (i, footprint) in footprints.iter().enumerate() {
-        let tree = &trees[i % 2];
+        let tree = &trees[i % 3];
         let warm = tree.query(footprint, &conic, &mut shared);
         let fresh = tree.query(footprint, &conic, &mut QueryScratch::new());
         assert_eq!(warm, fresh, "query {i}");

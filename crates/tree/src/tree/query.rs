@@ -273,7 +273,7 @@ impl CountTree {
             let mut k = 0;
             // The children's areas are drawn when a query counts them (`with_areas`).
             let draw_areas = node.depth + 1 >= DRAWN_AREAS_DEPTH;
-            self.emit_children_drawing(node, draw_areas, |child| {
+            self.emit_children_drawing(node, draw_areas, Some(memo), |child| {
                 children[k] = child;
                 k += 1;
             });

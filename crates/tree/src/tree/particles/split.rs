@@ -30,23 +30,31 @@ impl CountTree {
     /// and returns whether the split is spatial. A pure function of the node: the same
     /// children in every query.
     pub(in crate::tree) fn emit_children(&self, node: &Node, emit: impl FnMut(Node)) -> bool {
-        self.emit_children_drawing(node, true, emit)
+        self.emit_children_drawing(node, true, None, emit)
     }
 
     /// [`Self::emit_children`], with the children's particle areas (coloured materials) drawn
     /// only if `draw_areas`; otherwise they are [`UNDRAWN_AREAS`], which
     /// [`Self::with_areas`] draws when a query needs them. The areas come from streams of
-    /// their own, so the counts are the same either way.
+    /// their own, so the counts are the same either way. With a `memo`, the split counts may
+    /// come from (and go to) its table of counts remembered across queries.
     pub(in crate::tree) fn emit_children_drawing(
         &self,
         node: &Node,
         draw_areas: bool,
+        memo: Option<&mut QueryMemo>,
         mut emit: impl FnMut(Node),
     ) -> bool {
         let spatial = self.splits_in_space(node);
         let split = (!spatial).then(|| self.directional_split(&node.cell));
-        let mut counts = self.split_counts(node, split.as_deref());
-        let counts = [counts.divide(0), counts.divide(1)];
+        let remembered = memo
+            .as_ref()
+            .and_then(|memo| memo.remembered_counts(self, node));
+        let mut pairs = remembered.unwrap_or_else(|| self.split_counts(node, split.as_deref()));
+        let counts = [pairs.divide(0), pairs.divide(1)];
+        if let Some(memo) = memo {
+            memo.remember_counts(self, node, pairs);
+        }
         let counts = [counts[0][0], counts[0][1], counts[1][0], counts[1][1]];
         let mut areas = [[0.0; 3]; 4];
         if draw_areas {
@@ -98,7 +106,7 @@ impl CountTree {
                     None => {
                         let mut child = current;
                         let mut k = 0;
-                        self.emit_children(&current, |c| {
+                        self.emit_children_drawing(&current, true, Some(memo), |c| {
                             if k == j {
                                 child = c;
                             }
