@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use glam::{DVec2, DVec3};
+use glint_brdf::QueryScratch;
 use rayon::prelude::*;
 
 use crate::error::TracerError;
@@ -186,12 +187,18 @@ pub fn render(
     let tiles_y = height.div_ceil(TILE);
     let total = u64::from(tiles_x * tiles_y);
     let done = std::sync::atomic::AtomicU64::new(0);
+    // Each worker keeps one query scratch across its tiles (its memo of split counts serves
+    // neighbouring tiles too, and is allocated once); a tile's counters are its own. The memo
+    // never changes an answer, so the image does not depend on which worker renders a tile.
     let tiles: Vec<(Vec<DVec3>, PathState)> = (0..tiles_x * tiles_y)
         .into_par_iter()
-        .map(|tile| {
+        .map_init(QueryScratch::new, |scratch, tile| {
             let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
             let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
-            let mut state = PathState::default();
+            let mut state = PathState {
+                scratch: std::mem::take(scratch),
+                ..PathState::default()
+            };
             let mut pixels = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
             for y in y0..y1 {
                 for x in x0..x1 {
@@ -213,6 +220,7 @@ pub fn render(
             }
             let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(finished, total);
+            *scratch = std::mem::take(&mut state.scratch);
             (pixels, state)
         })
         .collect();
