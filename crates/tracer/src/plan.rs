@@ -419,4 +419,62 @@ mod tests {
         );
         assert!(!glint(&fixed).plan_footprint_area);
     }
+
+    /// The prior run follows perfect mirrors: a glint floor seen only in a 45° mirror gets
+    /// every camera ray's footprint; with a diffuse panel in the mirror's place, none.
+    #[test]
+    fn the_prior_run_sees_glints_through_mirrors() {
+        let scene = |panel: &str| {
+            let text = format!(
+                r#"
+                [render]
+                resolution = [32, 32]
+                spp = 1
+                integrator = "path"
+                max_depth = 2
+
+                [camera]
+                position = [0.0, 1.0, 3.0]
+                look_at = [0.0, 1.0, 0.0]
+                fov = 10
+
+                [materials.floor]
+                type = "glint"
+                alpha = 0.1
+                particles = 1e8
+                gamma = 1.0
+
+                [materials.panel]
+                {panel}
+
+                [[shapes]]
+                type = "rectangle"
+                center = [0.0, 0.0, 0.0]
+                u = [4.0, 0.0, 0.0]
+                v = [0.0, 0.0, -4.0]
+                material = "floor"
+
+                [[shapes]]
+                type = "rectangle"
+                center = [0.0, 1.0, 0.0]
+                u = [2.0, 0.0, 0.0]
+                v = [0.0, 1.4142, 1.4142]
+                material = "panel"
+
+                [[lights]]
+                type = "sphere"
+                center = [1.0, 3.0, 1.0]
+                radius = 0.1
+                power = 10.0
+                "#
+            );
+            parse_scene(&text, Path::new("mirror_plan.toml")).unwrap()
+        };
+        let mirrored = scene(r#"type = "mirror""#);
+        let hits = prior_run(&mirrored);
+        assert_eq!(hits.len(), 32 * 32);
+        assert!(hits.iter().all(|h| h.material == 0));
+        let diffuse = scene(r#"type = "diffuse""#);
+        assert!(prior_run(&diffuse).is_empty());
+    }
 }
