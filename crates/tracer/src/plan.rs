@@ -17,9 +17,9 @@
 //! built for other areas: from the geometric mean of the footprints it moves by factors of 4
 //! while the count falls by [`PLAN_GAIN`] or more (within [`PLAN_STEPS`]). This is the paper's
 //! prior run, used to measure the cost the plan is meant to lower. Its work is bounded: at most
-//! [`PLAN_GRID`]² hits with two queries each per candidate, and a candidate stops counting once
-//! it has visited more nodes than it may to be chosen, so none costs more than the first. On the
-//! scenes in `scenes/` it adds 0.1–1 s to loading.
+//! [`PLAN_GRID`]² hits with two queries each per candidate, the first candidate counts at most
+//! [`PLAN_NODE_BUDGET`] node visits, and each later one stops counting once it has visited more
+//! nodes than it may to be chosen. On the scenes in `scenes/` it adds 0.1–0.9 s to loading.
 //!
 //! The plan selects which particle set (of the same distribution) the scene renders, so it
 //! depends only on the scene file: not on `--resolution`, `--spp`, `--frame` or
@@ -48,6 +48,15 @@ pub const PLAN_STEPS: std::ops::RangeInclusive<i32> = -10..=4;
 /// within the sampling noise of a few hundred queries, and would make the plan of a material
 /// seen in few pixels a matter of chance.
 pub const PLAN_GAIN: f64 = 0.05;
+
+/// The range the geometric mean of the footprints is clamped to before the search (a plan far
+/// outside any node's area changes nothing, and every candidate stays a valid, normal area).
+const PLAN_MEAN_RANGE: [f64; 2] = [1.0 / (1u128 << 126) as f64, (1u64 << 40) as f64];
+
+/// Node visits the first candidate counts at most; later candidates count at most 95% of the
+/// fewest so far. The prior run's work per glint material is bounded by this times the
+/// candidates tried, whatever the footprints.
+pub const PLAN_NODE_BUDGET: u64 = 20_000_000;
 
 /// Mirror bounces the prior run follows after the camera ray, at most.
 const PLAN_MIRROR_BOUNCES: u32 = 8;
@@ -174,7 +183,7 @@ fn follow(
 }
 
 /// The area of the prior run's footprints on `glint` (geometric mean, rounded to a power of
-/// two), or `None` if it saw none.
+/// two, within `PLAN_MEAN_RANGE`), or `None` if it saw none.
 #[must_use]
 pub fn mean_area(glint: &GlintMaterial, hits: &[&PlanHit]) -> Option<f64> {
     let logs: Vec<f64> = hits
@@ -183,9 +192,11 @@ pub fn mean_area(glint: &GlintMaterial, hits: &[&PlanHit]) -> Option<f64> {
         .map(|f| f.area().log2())
         .collect();
     (!logs.is_empty()).then(|| {
+        let [lowest, highest] = PLAN_MEAN_RANGE;
         (logs.iter().sum::<f64>() / logs.len() as f64)
             .round()
             .exp2()
+            .clamp(lowest, highest)
     })
 }
 
@@ -255,7 +266,7 @@ pub fn planned_area(
             limit,
         ))
     };
-    let (mut best, mut fewest) = (0, cost(0, u64::MAX)?);
+    let (mut best, mut fewest) = (0, cost(0, PLAN_NODE_BUDGET)?);
     for direction in [-1, 1] {
         let mut k = best + direction;
         while PLAN_STEPS.contains(&k) {
@@ -494,5 +505,25 @@ mod tests {
         assert!(hits.iter().all(|h| h.material == 0));
         let diffuse = scene(r#"type = "diffuse""#);
         assert!(prior_run(&diffuse).is_empty());
+    }
+
+    /// Footprints far below any node's area (10⁻³⁰⁰ of the texture) still plan a valid area,
+    /// within the clamped range.
+    #[test]
+    fn extreme_footprints_plan_a_valid_area() {
+        let scene = floor_scene(0.5, "");
+        let g = glint(&scene);
+        let tiny = PlanHit {
+            material: 0,
+            uv: DVec2::new(0.3, 0.6),
+            duv: (DVec2::new(1e-150, 0.0), DVec2::new(0.0, 1e-150)),
+            wi: DVec3::new(0.1, 0.0, 1.0).normalize(),
+            to_light: Some(DVec3::new(-0.1, 0.05, 1.0).normalize()),
+            u_sampler: [0.3, 0.7, 0.2, 0.9],
+        };
+        let hits = vec![&tiny; 16];
+        assert_eq!(mean_area(g, &hits), Some(PLAN_MEAN_RANGE[0]));
+        let planned = planned_area(g, &hits).unwrap().unwrap();
+        assert!(planned > 0.0 && planned.is_normal(), "planned {planned:e}");
     }
 }
