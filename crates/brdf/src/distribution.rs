@@ -117,9 +117,8 @@ impl Microfacet {
 
     /// D(h)(h·n)/(4 ω_i·h), the density of ω_o = reflect(ω_i, h) for normals h drawn from
     /// D(h)(h·n), from the unnormalized half vector H = ω_i + ω_o (0 unless H.z > 0 and
-    /// ω_i·H > 0). No square root: with h = H/|H|, D(h) = e(H)·|H|⁴/(π α_x α_y H_z⁴), where
-    /// the slope term e depends on H's direction only, and (h·n)/(ω_i·h) = H_z/(ω_i·H), so the
-    /// density is e(H)·(H·H)²/(4π α_x α_y H_z³ (ω_i·H)).
+    /// ω_i·H > 0). No square root: [`Microfacet::d`] of H is D(h)/|H|⁴ (its slope term depends
+    /// on H's direction only, its normalization on H_z⁴), and (h·n)/(ω_i·h) = H_z/(ω_i·H).
     #[inline]
     #[must_use]
     pub fn reflected_density(&self, wi: DVec3, half: DVec3) -> f64 {
@@ -127,17 +126,8 @@ impl Microfacet {
         if !(half.z > 0.0 && cos > 0.0) {
             return 0.0;
         }
-        let z2 = half.z * half.z;
-        let slope2 = (half.x * half.x / (self.alpha_x * self.alpha_x)
-            + half.y * half.y / (self.alpha_y * self.alpha_y))
-            / z2;
-        let slope_term = match self.kind {
-            DistributionKind::Beckmann => (-slope2).exp(),
-            DistributionKind::Ggx => 1.0 / ((1.0 + slope2) * (1.0 + slope2)),
-        };
         let length2 = half.length_squared();
-        slope_term * length2 * length2
-            / (4.0 * std::f64::consts::PI * self.alpha_x * self.alpha_y * z2 * half.z * cos)
+        self.d(half) * length2 * length2 * half.z / (4.0 * cos)
     }
 
     /// p(m) = D(m)(m·n): the density of particle normals, which integrates to 1.

@@ -13,12 +13,12 @@
 use glam::{DVec2, DVec3};
 use glint_brdf::QueryScratch;
 
-use crate::accel::PrimitiveHit;
+use crate::accel::{Primitive, PrimitiveHit};
 use crate::camera::{RayDifferential, texture_footprint};
 use crate::differentials::{normal_derivatives, reflect, reflected_differential};
 use crate::light_cone::ConeVertex;
 use crate::material::{GlintCounters, Material, ShadingContext};
-use crate::sampler::PixelSampler;
+use crate::sampler::{PixelSampler, uniform_index};
 use crate::scene::Scene;
 use crate::shape::{Ray, SurfaceHit};
 use glint_brdf::frame::orthonormal_basis;
@@ -161,6 +161,34 @@ pub fn power_heuristic(pdf_this: f64, pdf_other: f64) -> f64 {
     } else {
         a / (a + b)
     }
+}
+
+/// The ray reflected by a perfect mirror at `surface` (about the shading normal of `frame`),
+/// or `None` when it would leave below the geometric normal.
+pub(crate) fn mirror_reflection(
+    surface: &SurfaceHit,
+    frame: &Frame,
+    geometric_normal: DVec3,
+    incoming: &Ray,
+) -> Option<Ray> {
+    let direction = reflect(incoming.direction, frame.n);
+    (direction.dot(geometric_normal) > 0.0).then(|| Ray {
+        origin: offset_origin(surface.point, geometric_normal, direction),
+        direction,
+    })
+}
+
+/// The ray differential `incoming` carried through the mirror bounce at `surface` of
+/// `primitive` onto `reflected` (see [`crate::differentials`]), or `None` when it is lost.
+pub(crate) fn mirror_differential(
+    scene: &Scene,
+    primitive: &Primitive,
+    surface: &SurfaceHit,
+    incoming: &RayDifferential,
+    reflected: Ray,
+) -> Option<RayDifferential> {
+    let dn = normal_derivatives(&primitive.geometry, scene.accelerator.meshes(), surface);
+    reflected_differential(surface, dn, incoming, reflected)
 }
 
 /// A local shading frame: z the shading normal, x along ∂p/∂u.
@@ -398,25 +426,18 @@ pub fn radiance(
         let wi = frame.to_local(wi_world);
         if let Material::Mirror(mirror) = material {
             // A delta reflection: no light sample, and f·cos/pdf = R.
-            let direction = reflect(ray.direction, frame.n);
-            if direction.dot(geometric_normal) <= 0.0 {
+            let Some(reflected) = mirror_reflection(&surface, &frame, geometric_normal, &ray)
+            else {
                 break;
-            }
+            };
             throughput *= mirror.reflectance(wi.z);
             if throughput == DVec3::ZERO {
                 break;
             }
-            ray = Ray {
-                origin: offset_origin(surface.point, geometric_normal, direction),
-                direction,
-            };
+            ray = reflected;
             differential = differential
                 .filter(|_| settings.glint_footprints == GlintFootprints::All)
-                .and_then(|d| {
-                    let geometry = &primitive.geometry;
-                    let dn = normal_derivatives(geometry, scene.accelerator.meshes(), &surface);
-                    reflected_differential(&surface, dn, &d, ray)
-                });
+                .and_then(|d| mirror_differential(scene, &primitive, &surface, &d, ray));
             previous = None;
             previous_cones = None;
             depth += 1;
@@ -455,12 +476,7 @@ pub fn radiance(
                     .pick(&scene.lights, u_pick)
                     .map(|i| (i, cones.pick_probability(&scene.lights)))
             }
-            None => (light_count > 0).then(|| {
-                (
-                    ((u_pick * light_count as f64) as usize).min(light_count - 1),
-                    light_pick,
-                )
-            }),
+            None => (light_count > 0).then(|| (uniform_index(u_pick, light_count), light_pick)),
         };
         if let (true, Some((light_index, light_pick))) = (use_light_sampling, picked) {
             let light = &scene.lights[light_index];

@@ -51,6 +51,7 @@ use glam::DVec3;
 use crate::integrator::{LightStrategy, RenderSettings, offset_origin};
 use crate::light::Light;
 use crate::material::{Material, ShadingContext};
+use crate::sampler::uniform_index;
 use crate::scene::Scene;
 use crate::shape::Ray;
 
@@ -157,7 +158,7 @@ impl ConeVertex {
         if n == 0 {
             return None;
         }
-        let k = ((u * n as f64) as usize).min(n - 1);
+        let k = uniform_index(u, n);
         lights
             .iter()
             .enumerate()

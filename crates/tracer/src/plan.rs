@@ -30,12 +30,10 @@ use glam::{DVec2, DVec3};
 use glint_brdf::{DiscreteBrdf, Footprint, QueryScratch};
 
 use crate::camera::{RayDifferential, texture_footprint};
-use crate::differentials::{normal_derivatives, reflect, reflected_differential};
-use crate::integrator::{Frame, offset_origin};
+use crate::integrator::{Frame, mirror_differential, mirror_reflection};
 use crate::material::{GlintMaterial, Material};
-use crate::sampler::PixelSampler;
+use crate::sampler::{PixelSampler, uniform_index};
 use crate::scene::Scene;
-use crate::shape::Ray;
 
 /// Camera rays per image axis of the prior run, at most (one per pixel for smaller images).
 pub const PLAN_GRID: u32 = 48;
@@ -140,17 +138,9 @@ fn follow(
         let material = primitive.material as usize;
         match &scene.materials[material] {
             Material::Mirror(_) => {
-                let direction = reflect(ray.direction, frame.n);
-                if direction.dot(geometric_normal) <= 0.0 {
-                    return None;
-                }
-                let reflected = Ray {
-                    origin: offset_origin(surface.point, geometric_normal, direction),
-                    direction,
-                };
-                let meshes = scene.accelerator.meshes();
-                let dn = normal_derivatives(&primitive.geometry, meshes, &surface);
-                differential = reflected_differential(&surface, dn, &differential, reflected)?;
+                let reflected = mirror_reflection(&surface, &frame, geometric_normal, &ray)?;
+                differential =
+                    mirror_differential(scene, &primitive, &surface, &differential, reflected)?;
             }
             glints if glints.has_glints() => {
                 let duv = texture_footprint(&surface, &differential)?;
@@ -158,8 +148,7 @@ fn follow(
                 let u_light = sampler.next_2d();
                 let to_light = (!scene.lights.is_empty())
                     .then(|| {
-                        let pick = ((u_pick * scene.lights.len() as f64) as usize)
-                            .min(scene.lights.len() - 1);
+                        let pick = uniform_index(u_pick, scene.lights.len());
                         scene.lights[pick].sample(surface.point, u_light)
                     })
                     .flatten()
@@ -200,19 +189,25 @@ pub fn mean_area(glint: &GlintMaterial, hits: &[&PlanHit]) -> Option<f64> {
     })
 }
 
-/// Tree nodes visited by the prior run's queries on `brdf` (queries `glint` would skip as
-/// negligible are left out: they visit nothing whatever the plan), counted until the sum
-/// exceeds `limit` (a candidate that has visited more cannot be chosen).
+/// A query of the prior run on one glint part: the footprint and the two directions.
+#[derive(Clone, Copy, Debug)]
+pub struct PlanQuery {
+    footprint: Footprint,
+    wi: DVec3,
+    wo: DVec3,
+}
+
+/// The prior run's queries on `glint` at `hits`, toward the light and along a direction drawn
+/// from its sampler, leaving out those its tree skips as negligible (they visit nothing
+/// whatever the plan, as the skip does not depend on it).
 #[must_use]
-pub fn nodes_visited(
-    brdf: &DiscreteBrdf,
+pub fn plan_queries(
     glint: &GlintMaterial,
     hits: &[&PlanHit],
     scratch: &mut QueryScratch,
-    limit: u64,
-) -> u64 {
+) -> Vec<PlanQuery> {
     let negligible_count = glint.brdf.parameters().negligible_count;
-    let mut nodes = 0;
+    let mut queries = Vec::new();
     for hit in hits {
         let Some(footprint) = hit.footprint(glint.uv_scale) else {
             continue;
@@ -223,17 +218,35 @@ pub fn nodes_visited(
                 .brdf
                 .at(&footprint, scratch)
                 .expected_count_bound(hit.wi, wo);
-            if bound < negligible_count {
-                continue;
+            if bound >= negligible_count {
+                queries.push(PlanQuery {
+                    footprint,
+                    wi: hit.wi,
+                    wo,
+                });
             }
-            let visited = brdf
-                .at(&footprint, scratch)
-                .evaluate(hit.wi, wo)
-                .nodes_visited;
-            nodes += u64::from(visited);
-            if nodes > limit {
-                return nodes;
-            }
+        }
+    }
+    queries
+}
+
+/// Tree nodes visited by `queries` on `brdf`, counted until the sum exceeds `limit` (a
+/// candidate that has visited more cannot be chosen).
+#[must_use]
+pub fn nodes_visited(
+    brdf: &DiscreteBrdf,
+    queries: &[PlanQuery],
+    scratch: &mut QueryScratch,
+    limit: u64,
+) -> u64 {
+    let mut nodes = 0;
+    for query in queries {
+        let result = brdf
+            .at(&query.footprint, scratch)
+            .evaluate(query.wi, query.wo);
+        nodes += u64::from(result.nodes_visited);
+        if nodes > limit {
+            break;
         }
     }
     nodes
@@ -253,6 +266,7 @@ pub fn planned_area(
         return Ok(None);
     };
     let mut scratch = QueryScratch::default();
+    let queries = plan_queries(glint, hits, &mut scratch);
     let mut cost = |k: i32, limit: u64| -> Result<u64, glint_brdf::BrdfError> {
         let candidate = glint.rebuilt(|p| {
             p.expected_footprint_area = mean * 4f64.powi(k);
@@ -260,8 +274,7 @@ pub fn planned_area(
         })?;
         Ok(nodes_visited(
             &candidate.brdf,
-            glint,
-            hits,
+            &queries,
             &mut scratch,
             limit,
         ))
@@ -323,28 +336,27 @@ mod tests {
     use crate::scene_file::parse_scene;
     use std::path::Path;
 
-    /// A camera straight above a glint floor; `extra` goes into the material.
-    fn floor_scene(height: f64, extra: &str) -> Scene {
+    /// A glint floor (material 0, 8 m × 8 m at y = 0) under a small sphere light, seen by
+    /// `camera` (a `[camera]` section's body); `floor` goes into the floor's material and
+    /// `more` after the floor's shape.
+    fn glint_floor_scene(camera: &str, floor: &str, more: &str) -> Scene {
         let text = format!(
             r#"
             [render]
             resolution = [32, 32]
             spp = 1
-            integrator = "direct"
+            integrator = "path"
+            max_depth = 2
 
             [camera]
-            position = [0.0, {height}, 0.0]
-            look_at = [0.0, 0.0, 0.0]
-            up = [0.0, 0.0, -1.0]
-            fov = 10
+            {camera}
 
             [materials.floor]
             type = "glint"
             alpha = 0.05
             particles = 1e8
             gamma = 1.0
-            uv_scale = 0.5
-            {extra}
+            {floor}
 
             [[shapes]]
             type = "rectangle"
@@ -352,6 +364,8 @@ mod tests {
             u = [4.0, 0.0, 0.0]
             v = [0.0, 0.0, -4.0]
             material = "floor"
+
+            {more}
 
             [[lights]]
             type = "sphere"
@@ -361,6 +375,15 @@ mod tests {
             "#
         );
         parse_scene(&text, Path::new("plan.toml")).unwrap()
+    }
+
+    /// A camera straight above the glint floor at `height`, with a 10° field of view; the
+    /// particles' square is 8 m wide (uv_scale 0.5); `extra` goes into the floor's material.
+    fn floor_scene(height: f64, extra: &str) -> Scene {
+        let camera = format!(
+            "position = [0.0, {height}, 0.0]\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 0.0, -1.0]\nfov = 10"
+        );
+        glint_floor_scene(&camera, &format!("uv_scale = 0.5\n{extra}"), "")
     }
 
     fn glint(scene: &Scene) -> &GlintMaterial {
@@ -410,6 +433,7 @@ mod tests {
         let hits: Vec<&PlanHit> = hits.iter().collect();
         let mean = mean_area(g, &hits).unwrap();
         let mut scratch = QueryScratch::default();
+        let queries = plan_queries(g, &hits, &mut scratch);
         let mut cost = |area: f64| {
             let candidate = g
                 .rebuilt(|p| {
@@ -417,7 +441,7 @@ mod tests {
                     p.negligible_count = 0.0;
                 })
                 .unwrap();
-            nodes_visited(&candidate.brdf, g, &hits, &mut scratch, u64::MAX) as f64
+            nodes_visited(&candidate.brdf, &queries, &mut scratch, u64::MAX) as f64
         };
         let at_plan = cost(planned);
         assert!(at_plan > 0.0, "the prior run traverses the tree");
@@ -454,34 +478,11 @@ mod tests {
     #[test]
     fn the_prior_run_sees_glints_through_mirrors() {
         let scene = |panel: &str| {
-            let text = format!(
+            let camera = "position = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nfov = 10";
+            let mirror = format!(
                 r#"
-                [render]
-                resolution = [32, 32]
-                spp = 1
-                integrator = "path"
-                max_depth = 2
-
-                [camera]
-                position = [0.0, 1.0, 3.0]
-                look_at = [0.0, 1.0, 0.0]
-                fov = 10
-
-                [materials.floor]
-                type = "glint"
-                alpha = 0.1
-                particles = 1e8
-                gamma = 1.0
-
                 [materials.panel]
                 {panel}
-
-                [[shapes]]
-                type = "rectangle"
-                center = [0.0, 0.0, 0.0]
-                u = [4.0, 0.0, 0.0]
-                v = [0.0, 0.0, -4.0]
-                material = "floor"
 
                 [[shapes]]
                 type = "rectangle"
@@ -489,15 +490,9 @@ mod tests {
                 u = [2.0, 0.0, 0.0]
                 v = [0.0, 1.4142, 1.4142]
                 material = "panel"
-
-                [[lights]]
-                type = "sphere"
-                center = [1.0, 3.0, 1.0]
-                radius = 0.1
-                power = 10.0
                 "#
             );
-            parse_scene(&text, Path::new("mirror_plan.toml")).unwrap()
+            glint_floor_scene(camera, "", &mirror)
         };
         let mirrored = scene(r#"type = "mirror""#);
         let hits = prior_run(&mirrored);

@@ -19,6 +19,13 @@ pub struct PixelSampler {
     set: Option<(u32, [f32; 4])>,
 }
 
+/// One of `count` (> 0) choices, uniformly, from a uniform number `u` in [0, 1).
+#[inline]
+#[must_use]
+pub fn uniform_index(u: f64, count: usize) -> usize {
+    ((u * count as f64) as usize).min(count - 1)
+}
+
 /// A 32-bit integer hash (Wellons' lowbias32).
 #[must_use]
 pub fn hash32(mut x: u32) -> u32 {

@@ -282,9 +282,10 @@ impl CountTree {
         }
         let split = (!spatial).then(|| self.directional_split(&node.cell));
         let split = split.as_deref();
-        let mut counts = memo
-            .remembered_counts(self, node)
-            .unwrap_or_else(|| self.split_counts(node, split));
+        let remembered = memo.remembered_counts(self, node);
+        // Whether this split draws anything the memo does not hold yet.
+        let mut drawn = remembered.is_none();
+        let mut counts = remembered.unwrap_or_else(|| self.split_counts(node, split));
         for pair in 0..2 {
             if counts.totals[pair] == 0 {
                 continue;
@@ -310,6 +311,7 @@ impl CountTree {
                 tested += counts.undivided_visits(pair);
                 continue;
             }
+            drawn |= counts.is_pending(pair);
             let divided = counts.divide(pair);
             for i in 0..2 {
                 if divided[i] > 0 {
@@ -321,7 +323,9 @@ impl CountTree {
                 }
             }
         }
-        memo.remember_counts(self, node, counts);
+        if drawn {
+            memo.remember_counts(self, node, counts);
+        }
         tested
     }
 

@@ -51,8 +51,10 @@ impl CountTree {
             .as_ref()
             .and_then(|memo| memo.remembered_counts(self, node));
         let mut pairs = remembered.unwrap_or_else(|| self.split_counts(node, split.as_deref()));
+        // Whether this split draws anything the memo does not hold yet.
+        let drawn = remembered.is_none() || pairs.is_pending(0) || pairs.is_pending(1);
         let counts = [pairs.divide(0), pairs.divide(1)];
-        if let Some(memo) = memo {
+        if let (Some(memo), true) = (memo, drawn) {
             memo.remember_counts(self, node, pairs);
         }
         let counts = [counts[0][0], counts[0][1], counts[1][0], counts[1][1]];
@@ -275,6 +277,11 @@ impl PairCounts {
                 self.totals[pair].min(possible) as u32
             }
         }
+    }
+
+    /// Whether `pair`'s division is still to be drawn.
+    pub(in crate::tree) fn is_pending(&self, pair: usize) -> bool {
+        matches!(self.pairs[pair], PairDivision::Pending { .. })
     }
 
     /// The counts of the children of `pair` (0 or 1), drawn on the first call.
