@@ -76,11 +76,12 @@ fn same_query_is_bit_identical_in_any_thread_and_order() {
     assert!(forward.iter().any(|r| r.count > 0.0));
 }
 
-/// A scratch remembers split counts across queries (and trees): neighbouring and repeated
-/// footprints, queried through one scratch with three trees interleaved (one coloured),
-/// answer exactly as each does with a fresh scratch, nodes visited and areas included.
+/// A scratch remembers split counts and leaves' particle positions across queries (and
+/// trees): neighbouring and overlapping footprints, queried through one scratch with three
+/// trees interleaved (one coloured), answer exactly as each does with a fresh scratch, nodes
+/// visited and areas included.
 #[test]
-fn remembered_split_counts_change_no_answer() {
+fn remembered_counts_and_leaves_change_no_answer() {
     let coloured = CountTreeConfig {
         particles: 100_000_000,
         seed: 7,
@@ -94,11 +95,13 @@ fn remembered_split_counts_change_no_answer() {
     ];
     let conic = near_specular_conic(2.0);
     let mut rng = SplitMix64::new(21);
-    // Clusters of footprints around a few points, as a pixel's samples and its neighbours.
+    // Clusters of footprints around a few points, as a pixel's neighbours (spread 0.03) and
+    // its samples (spread 3e-4, overlapping footprints that meet the same leaves).
     let footprints: Vec<Footprint> = (0..300)
         .map(|i| {
             let centre = DVec2::new(0.1 + 0.2 * f64::from(i % 4), 0.3 + 0.1 * f64::from(i % 3));
-            let jitter = DVec2::new(rng.uniform(), rng.uniform()) * 0.03;
+            let spread = if i % 2 == 0 { 0.03 } else { 3e-4 };
+            let jitter = DVec2::new(rng.uniform(), rng.uniform()) * spread;
             square(centre + jitter, 1e-3)
         })
         .collect();

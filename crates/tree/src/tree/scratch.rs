@@ -10,16 +10,16 @@ use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic};
 
 use super::CountTree;
-use super::particles::{LeafParticle, Node, PairCounts, box_size_at};
+use super::particles::{LeafParticle, LeafPositions, Node, PairCounts, box_size_at};
 use super::query::QueuedNode;
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
 use crate::node::NodeId;
 
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
-/// first query allocates 360 KB of memo tables (answers that recur within a query, and split
-/// probabilities and split counts that recur across queries, of any material: one scratch
-/// serves them all).
+/// first query allocates 540 KB of memo tables (answers that recur within a query, and split
+/// probabilities, split counts and leaves' particle positions that recur across queries, of
+/// any material: one scratch serves them all).
 #[derive(Debug, Default)]
 pub struct QueryScratch {
     pub(super) queue: Vec<QueuedNode>,
@@ -49,6 +49,9 @@ impl QueryScratch {
 /// the rest of the descent step. And it keeps the split counts of the nodes below the tree's
 /// cached top levels (with the pair divisions drawn): a pixel's samples and its neighbours'
 /// descend through the same nodes, whose binomial draws cost more than the rest of a split.
+/// And it keeps the leaves those queries meet, with their particles' sub-box codes and the
+/// positions drawn so far: each costs a TEA draw, and most leaves a query meets hold no
+/// particle of its footprint.
 #[derive(Debug, Default)]
 pub(super) struct QueryMemo {
     classifications: Vec<ClassificationEntry>,
@@ -58,6 +61,16 @@ pub(super) struct QueryMemo {
     generation: u32,
     splits: Vec<SplitEntry>,
     counts: Vec<CountsEntry>,
+    leaves: Vec<LeafEntry>,
+}
+
+/// A leaf (its identity) of a tree (the tree's identity) with its particles' sub-box codes
+/// and the positions drawn so far.
+#[derive(Clone, Copy, Debug)]
+struct LeafEntry {
+    tree: u64,
+    id: NodeId,
+    positions: Option<LeafPositions>,
 }
 
 /// A node's split counts (its identity) in a tree (the tree's identity), with the pair
@@ -123,12 +136,15 @@ const SPLIT_MEMO_BITS: u32 = 10;
 /// log₂ of the entries of the table of split counts (2048, 295 KB).
 const COUNTS_MEMO_BITS: u32 = 11;
 
-/// The slot of node `id` of tree `tree` in the table of split counts.
+/// log₂ of the entries of the table of leaves' particle positions (256, 147 KB).
+const LEAVES_MEMO_BITS: u32 = 8;
+
+/// The slot of node `id` of tree `tree` in a table of 2^`bits` entries.
 #[inline]
-fn counts_slot(tree: u64, id: NodeId) -> usize {
+fn node_slot(tree: u64, id: NodeId, bits: u32) -> usize {
     memo_slot(
         id.0 as u64 ^ (id.0 >> 64) as u64 ^ tree.rotate_left(47),
-        COUNTS_MEMO_BITS,
+        bits,
     )
 }
 
@@ -175,6 +191,12 @@ impl QueryMemo {
         counts: None,
     };
 
+    const NO_LEAF: LeafEntry = LeafEntry {
+        tree: 0,
+        id: NodeId(0),
+        positions: None,
+    };
+
     /// Forgets the previous query's answers (allocates the tables on first use).
     pub(super) fn begin_query(&mut self) {
         if self.classifications.is_empty() {
@@ -184,6 +206,7 @@ impl QueryMemo {
             self.boxes = vec![Self::NO_BOX; 1 << BOX_MEMO_BITS];
             self.splits = vec![Self::NO_SPLIT; 1 << SPLIT_MEMO_BITS];
             self.counts = vec![Self::NO_COUNTS; 1 << COUNTS_MEMO_BITS];
+            self.leaves = vec![Self::NO_LEAF; 1 << LEAVES_MEMO_BITS];
         }
         self.generation = self.generation.wrapping_add(1);
         if self.generation == 0 {
@@ -308,7 +331,9 @@ impl QueryMemo {
     /// pixel's samples, descend through the same nodes.
     #[inline]
     pub(super) fn remembered_counts(&self, tree: &CountTree, node: &Node) -> Option<PairCounts> {
-        let entry = self.counts.get(counts_slot(tree.id, node.id))?;
+        let entry = self
+            .counts
+            .get(node_slot(tree.id, node.id, COUNTS_MEMO_BITS))?;
         entry
             .counts
             .filter(|_| entry.tree == tree.id && entry.id == node.id)
@@ -317,13 +342,38 @@ impl QueryMemo {
     /// Remembers `counts`, the split counts of `node` in `tree`, for later queries.
     #[inline]
     pub(super) fn remember_counts(&mut self, tree: &CountTree, node: &Node, counts: PairCounts) {
-        if let Some(entry) = self.counts.get_mut(counts_slot(tree.id, node.id)) {
+        if let Some(entry) = self
+            .counts
+            .get_mut(node_slot(tree.id, node.id, COUNTS_MEMO_BITS))
+        {
             *entry = CountsEntry {
                 tree: tree.id,
                 id: node.id,
                 counts: Some(counts),
             };
         }
+    }
+
+    /// The sub-box codes and drawn positions of the particles of `leaf` in `tree`, as earlier
+    /// queries left them, or from `draw` (the codes, no position) when they are not
+    /// remembered: a pixel's samples and its neighbours' meet the same leaves. The caller
+    /// adds the positions it draws.
+    #[inline]
+    pub(super) fn leaf_positions(
+        &mut self,
+        tree: &CountTree,
+        leaf: &Node,
+        draw: impl FnOnce() -> LeafPositions,
+    ) -> &mut LeafPositions {
+        let entry = &mut self.leaves[node_slot(tree.id, leaf.id, LEAVES_MEMO_BITS)];
+        if !(entry.tree == tree.id && entry.id == leaf.id) {
+            *entry = LeafEntry {
+                tree: tree.id,
+                id: leaf.id,
+                positions: None,
+            };
+        }
+        entry.positions.get_or_insert_with(draw)
     }
 
     /// The split probabilities of `cell` (whose `children` the caller has) in `tree`, for a

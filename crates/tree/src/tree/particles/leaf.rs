@@ -57,6 +57,49 @@ pub(super) struct LeafStream {
     pub(super) rounds: u32,
 }
 
+/// The sub-box codes of up to [`Self::CAPACITY`] particles of a leaf (four bits each, in
+/// order, as the leaf's stream draws them: sixteen per draw) and the positions drawn so far:
+/// what a query needs of a leaf's particles before their normals.
+#[derive(Clone, Copy, Debug)]
+pub(in crate::tree) struct LeafPositions {
+    codes: [u64; 2],
+    /// Bit i is set when `positions[i]` holds particle i's position.
+    drawn: u32,
+    positions: [DVec2; LeafPositions::CAPACITY],
+}
+
+impl LeafPositions {
+    /// The particles a set of positions holds: [`LEAF_PARTICLES`], a whole leaf.
+    pub(in crate::tree) const CAPACITY: usize = LEAF_PARTICLES as usize;
+
+    /// The codes of the next `particles` (at most [`Self::CAPACITY`]) particles from the
+    /// leaf's sub-box stream, no position drawn.
+    fn with_codes(sub_boxes: &mut TeaRng, particles: usize) -> Self {
+        debug_assert!(particles <= Self::CAPACITY);
+        let mut codes = [0; 2];
+        for code in codes.iter_mut().take(particles.div_ceil(16)) {
+            *code = sub_boxes.next_bits();
+        }
+        Self {
+            codes,
+            drawn: 0,
+            positions: [DVec2::ZERO; Self::CAPACITY],
+        }
+    }
+
+    /// Particle i's sub-box code.
+    fn code(&self, i: usize) -> usize {
+        (self.codes[i / 16] >> (4 * (i % 16)) & 15) as usize
+    }
+
+    /// The first `particles` particles whose sub-boxes are in the mask `sub_boxes` (bit i for
+    /// particle i).
+    fn in_sub_boxes(&self, sub_boxes: u32, particles: usize) -> u32 {
+        // No branch per particle: whether its sub-box meets the footprint is a coin toss.
+        (0..particles).fold(0, |mask, i| mask | (sub_boxes >> self.code(i) & 1) << i)
+    }
+}
+
 impl CountTree {
     /// Counts a leaf's particles (positions one by one, normals by [`Self::normals_in_conic`]);
     /// returns (count, area sums). `directional` is the
@@ -109,33 +152,57 @@ impl CountTree {
                 let (column, row) = sub_box_column_and_row(code);
                 mask | (columns >> column & rows >> row & 1) << code
             });
+        // A leaf of at most `LeafPositions::CAPACITY` particles keeps its sub-box codes and
+        // the positions drawn so far in the memo: a pixel's samples, and its neighbours',
+        // meet the same leaves. Larger leaves (only at the depth guard) draw them afresh.
         let mut sub_boxes = self.stream(node.id, PURPOSE_LEAF_SUB_BOXES);
-        for first in (0..node.count).step_by(16) {
-            // The particles of these sixteen whose sub-boxes may meet the footprint.
-            let codes = sub_boxes.next_bits();
-            let mut candidates = [(0u32, 0usize); 16];
-            let mut found = 0;
-            for i in 0..(node.count - first).min(16) {
-                // Written always, kept by advancing `found` (no branch to mispredict: whether
-                // a particle's sub-box meets the footprint is a coin toss).
-                let code = (codes >> (4 * i) & 15) as usize;
-                candidates[found] = (PURPOSE_LEAF + (first + i) as u32, code);
-                found += (meeting >> code & 1) as usize;
-            }
-            for four in candidates[..found].chunks(4) {
-                let purposes: [u32; 4] = std::array::from_fn(|i| four.get(i).map_or(0, |c| c.0));
-                let draws = draws_x4(key, purposes, 0, rounds);
-                for (&(purpose, code), draw) in four.iter().zip(draws) {
-                    let position = sub_box_min(code) + sub_size * DVec2::from(unit_pair(draw));
-                    let multiplicity = multiplicity_at.at(position);
-                    if multiplicity == 0 {
-                        continue;
+        let mut unremembered;
+        for first in (0..node.count).step_by(LeafPositions::CAPACITY) {
+            let particles = (node.count - first).min(LeafPositions::CAPACITY as u64) as usize;
+            let leaf = if node.count <= LeafPositions::CAPACITY as u64 {
+                memo.leaf_positions(self, node, || {
+                    LeafPositions::with_codes(&mut sub_boxes, particles)
+                })
+            } else {
+                unremembered = LeafPositions::with_codes(&mut sub_boxes, particles);
+                &mut unremembered
+            };
+            // The particles whose sub-boxes may meet the footprint (bit i for particle
+            // first + i), and those of them whose positions are still to be drawn.
+            let candidates = leaf.in_sub_boxes(meeting, particles);
+            let mut to_draw = candidates & !leaf.drawn;
+            while to_draw != 0 {
+                // Four positions per 4-lane TEA call.
+                let mut four = [None; 4];
+                for slot in &mut four {
+                    if to_draw != 0 {
+                        *slot = Some(to_draw.trailing_zeros() as usize);
+                        to_draw &= to_draw - 1;
                     }
-                    in_footprint.push(LeafParticle {
-                        normal: NormalDescent::new(purpose, DRAW_AREAS + channels as u32),
-                        multiplicity,
-                    });
                 }
+                let purpose = |i: usize| PURPOSE_LEAF + (first as usize + i) as u32;
+                let purposes = four.map(|i| i.map_or(0, purpose));
+                let draws = draws_x4(key, purposes, 0, rounds);
+                for (i, draw) in four.into_iter().zip(draws) {
+                    if let Some(i) = i {
+                        leaf.positions[i] =
+                            sub_box_min(leaf.code(i)) + sub_size * DVec2::from(unit_pair(draw));
+                        leaf.drawn |= 1 << i;
+                    }
+                }
+            }
+            for i in members(u64::from(candidates)) {
+                let multiplicity = multiplicity_at.at(leaf.positions[i]);
+                if multiplicity == 0 {
+                    continue;
+                }
+                in_footprint.push(LeafParticle {
+                    normal: NormalDescent::new(
+                        PURPOSE_LEAF + (first as usize + i) as u32,
+                        DRAW_AREAS + channels as u32,
+                    ),
+                    multiplicity,
+                });
             }
         }
         // The first uniform number of each descent, four particles per 4-lane TEA call.
