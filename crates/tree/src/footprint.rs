@@ -284,6 +284,12 @@ impl Footprint {
         first..=last
     }
 
+    /// The footprint's axis-aligned bounding box, (min, max) (its centre in [0, 1)²).
+    #[inline]
+    pub(crate) fn bounds(&self) -> (DVec2, DVec2) {
+        (self.min, self.max)
+    }
+
     /// How the box [min, min + size]² meets the footprint's integer translates.
     #[must_use]
     pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {

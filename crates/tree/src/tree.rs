@@ -7,6 +7,8 @@
 //!   part whose every draw must stay the same (see its header).
 //! - `query`: Alg. 1's breadth-first count with Eq. 10's early stop ([`CountTree::query`]).
 //! - `scratch`: the reusable working memory and memo of queries ([`QueryScratch`]).
+//! - `spine`: the single spatial path from the root that queries share, remembered across
+//!   queries so that a query starts below it.
 //! - `law`: the expected count and the directional law's excess over p
 //!   ([`CountTree::expected_count`], [`CountTree::directional_law_excess`]).
 
@@ -25,6 +27,7 @@ mod law;
 mod particles;
 mod query;
 mod scratch;
+mod spine;
 
 pub use law::DirectionalLawExcess;
 use particles::Node;

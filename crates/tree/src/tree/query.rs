@@ -107,20 +107,38 @@ impl CountTree {
             cells,
             in_footprint,
             memo,
+            spines,
         } = scratch;
         queue.clear();
         next_queue.clear();
         memo.begin_query();
+        // The traversal starts at the root, or below the levels of this tree's spine that
+        // hold the footprint (see `super::spine`: the same visits and answers).
+        let bounds = footprint.bounds();
+        let spine = spines.of(self.id);
         let root = self.root();
-        let root = QueuedNode {
-            spatial: footprint.overlap_box(root.box_min, root.box_size()),
-            directional: memo.classify(&root.cell, conic),
-            node: root,
+        let (first, level) = match spine.start(bounds) {
+            Some(start) => {
+                visited = start.visited;
+                overlapping = start.level as u32;
+                (start.node, start.level)
+            }
+            None => {
+                visited = 1;
+                (root, 0)
+            }
         };
-        visited += 1;
-        if !root.spatial.is_disjoint() {
-            queue.push(root);
+        spine.restart_at(level, &root);
+        let first = QueuedNode {
+            spatial: memo.overlap_box(first.box_min, first.box_level, footprint),
+            directional: memo.classify(&first.cell, conic),
+            node: first,
+        };
+        if !first.spatial.is_disjoint() {
+            queue.push(first);
         }
+        // Whether the levels so far are a single spatial path (the spine goes on).
+        let mut on_spine = true;
         // Eq. 10 compares a node's spread with ε times the running count. A footprint of a
         // tile or more finds nothing fully inside for many levels (its wrapped edges cut every
         // coarse box), and a dense query may also run long on a zero count; there the expected
@@ -132,6 +150,7 @@ impl CountTree {
         // Breadth first, a level at a time: the queue holds one level while its children
         // gather in the next (the order of a FIFO queue, without copying nodes out of it).
         while !queue.is_empty() {
+            let visited_before = visited;
             for queued in queue.iter() {
                 overlapping += 1;
                 if scale_floor.is_none()
@@ -206,6 +225,15 @@ impl CountTree {
                 }
                 visited += self.split_into(queued, footprint, conic, memo, next_queue);
             }
+            // The level was one node that split in space and queued one child, with nothing
+            // counted and the threshold 0: the spine goes on if the child holds the footprint.
+            on_spine = on_spine
+                && queue.len() == 1
+                && next_queue.len() == 1
+                && count == 0.0
+                && scale_floor.is_none()
+                && self.splits_in_space(&queue[0].node)
+                && spine.extend(visited - visited_before, &next_queue[0].node, bounds);
             std::mem::swap(queue, next_queue);
             next_queue.clear();
         }

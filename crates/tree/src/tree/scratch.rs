@@ -12,6 +12,7 @@ use glint_sphere::{Classification, SphericalConic};
 use super::CountTree;
 use super::particles::{LeafParticle, LeafPositions, Node, PairCounts, box_size_at};
 use super::query::QueuedNode;
+use super::spine::Spines;
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
 use crate::node::NodeId;
@@ -19,7 +20,8 @@ use crate::node::NodeId;
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
 /// first query allocates 540 KB of memo tables (answers that recur within a query, and split
 /// probabilities, split counts and leaves' particle positions that recur across queries, of
-/// any material: one scratch serves them all).
+/// any material: one scratch serves them all), and it keeps the spines of the last four trees
+/// queried (`super::spine`: the spatial path from the root their queries share).
 #[derive(Debug, Default)]
 pub struct QueryScratch {
     pub(super) queue: Vec<QueuedNode>,
@@ -27,6 +29,7 @@ pub struct QueryScratch {
     pub(super) cells: Vec<DirectionalCell>,
     pub(super) in_footprint: Vec<LeafParticle>,
     pub(super) memo: QueryMemo,
+    pub(super) spines: Spines,
 }
 
 impl QueryScratch {
