@@ -290,6 +290,17 @@ impl Footprint {
         (self.min, self.max)
     }
 
+    /// The largest magnitude of an entry of the map from texture offsets to the parameters
+    /// (s, t): about 1 / the footprint's narrowest width.
+    #[inline]
+    pub(crate) fn parameter_map_bound(&self) -> f64 {
+        let m = &self.to_parameters;
+        m.x_axis
+            .abs()
+            .max_element()
+            .max(m.y_axis.abs().max_element())
+    }
+
     /// How the box [min, min + size]² meets the footprint's integer translates.
     #[must_use]
     pub fn overlap_box(&self, min: DVec2, size: f64) -> BoxOverlap {

@@ -117,7 +117,7 @@ impl CountTree {
         let bounds = footprint.bounds();
         let spine = spines.of(self.id);
         let root = self.root();
-        let (first, level) = match spine.start(bounds) {
+        let (first, level) = match spine.start(bounds, footprint.parameter_map_bound()) {
             Some(start) => {
                 visited = start.visited;
                 overlapping = start.level as u32;

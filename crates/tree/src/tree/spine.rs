@@ -14,14 +14,20 @@
 //! query's footprint strictly inside; nothing had been counted and Eq. 10's scale floor was not
 //! set, so the threshold ε·max(count, floor) was 0 and no early stop could happen at that
 //! level. A later query may skip the levels above a spine node whose box holds its footprint's
-//! bounding box strictly inside. Then, at every skipped level:
+//! bounding box strictly inside, when the footprint is neither within 2⁻⁵⁴ of the texture's
+//! edges u = 0 or v = 0 nor narrower than about 2⁻⁴⁰ (below). Then, at every skipped level:
 //! - the three other quarters are disjoint by the bounding-box test that
 //!   [`crate::Footprint::overlap_box`] makes first: the footprint's bounding box lies strictly
 //!   inside the unit square and strictly on one side of each of them, so no integer translate
-//!   reaches them (the subtractions round monotonically, and a difference of distinct doubles
-//!   is not rounded to 0);
+//!   reaches them. The subtractions round monotonically and a difference of distinct doubles
+//!   is not rounded to 0, so min − (a quarter's max) stays above −1 unless that max is 1 and
+//!   min is below 2⁻⁵⁴, where min − 1 rounds to −1: such footprints start at the root;
 //! - the node on the path meets the footprint only partly, as it did for the recording query,
-//!   and splits the same way (the split depends on the node alone);
+//!   and splits the same way (the split depends on the node alone). Its box holds the
+//!   footprint, so in the footprint's parameters (s, t) its ranges cover [−½, ½] and reach
+//!   beyond by an amount of order 1 (a skipped node is at least twice as wide as the box
+//!   holding the footprint); with the parameter map's entries at most 2⁴⁰, the rounding of
+//!   the separating-axis test stays below 2⁻¹⁰, so it finds neither "disjoint" nor "inside";
 //! - its children tested are those the recording query tested: the children with particles of
 //!   the pair holding the path, and the other pair's undivided visits (it is disjoint for both
 //!   footprints);
@@ -38,6 +44,10 @@ use super::particles::Node;
 
 /// Trees whose spines a scratch keeps (a scene's materials take turns at a slot).
 const SPINE_SLOTS: usize = 4;
+
+/// The largest entry of a footprint's parameter map for which a query may start on the spine:
+/// 2⁴⁰, footprints wider than about 10⁻¹² (see the module docs).
+const MAX_PARAMETER_MAP: f64 = (1u64 << 40) as f64;
 
 /// One tree's remembered spine.
 #[derive(Clone, Debug, Default)]
@@ -92,7 +102,17 @@ impl Spine {
     /// The deepest remembered node below the root whose box holds the footprint's bounding box
     /// `[min, max]` strictly inside, with the nodes a full traversal visits down to it: the
     /// root and the children tested at each level above.
-    pub(super) fn start(&self, (min, max): (DVec2, DVec2)) -> Option<SpineStart> {
+    pub(super) fn start(
+        &self,
+        (min, max): (DVec2, DVec2),
+        parameter_map_bound: f64,
+    ) -> Option<SpineStart> {
+        // The conditions of the module docs: clear of the edges u = 0 and v = 0 by more than
+        // rounding against 1, and not a sliver.
+        let clear_of_edges = (min - DVec2::ONE).cmpgt(DVec2::NEG_ONE).all();
+        if !(clear_of_edges && parameter_map_bound <= MAX_PARAMETER_MAP) {
+            return None;
+        }
         let inside = |node: &Node| strictly_inside(min, max, node);
         let level = self.nodes.iter().skip(1).take_while(|n| inside(n)).count();
         (level > 0).then(|| SpineStart {
@@ -137,7 +157,7 @@ fn strictly_inside(min: DVec2, max: DVec2, node: &Node) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use glam::{DVec2, DVec3};
+    use glam::{DMat2, DVec2, DVec3};
     use glint_sphere::SphericalConic;
 
     use crate::footprint::Footprint;
@@ -146,10 +166,12 @@ mod tests {
 
     /// Queries through one scratch, which start below the levels of the spine that hold their
     /// footprints, answer exactly as from the root with a fresh scratch: counts, areas, nodes
-    /// visited and overlapping. The footprints are small (a deep spine: N = 10⁸, planned for
-    /// 10⁻¹⁰) and include ones whose bounding boxes touch the dyadic lines of the spine's
-    /// boxes exactly, where the strictness of the test decides; exact and ε = 0.1 trees, one
-    /// coloured, take turns at the scratch.
+    /// visited and overlapping, truncation. The footprints are small (a deep spine: N = 10⁸,
+    /// planned for 10⁻¹⁰), rotated and sheared; some have bounding boxes on the dyadic lines of
+    /// the spine's boxes (where the strictness of the test decides), some lie within rounding
+    /// of the texture's edges u = 0 or v = 0, some are slivers. Seven trees take turns at the
+    /// scratch's four slots (exact, ε = 0.1, coloured, no cached levels, node budgets of 5, 9
+    /// and 50, a depth guard of 12, and a clone, which shares its tree's spine).
     #[test]
     fn queries_started_on_the_spine_answer_as_from_the_root() {
         let config = |seed, epsilon, colour_channels| CountTreeConfig {
@@ -160,10 +182,27 @@ mod tests {
             colour_channels,
             ..CountTreeConfig::default()
         };
+        let tree = |config| CountTree::new(config, beckmann(0.01)).expect("valid");
+        let exact = tree(config(1, 0.0, 0));
         let trees = [
-            CountTree::new(config(1, 0.0, 0), beckmann(0.01)).expect("valid"),
-            CountTree::new(config(2, 0.1, 0), beckmann(0.02)).expect("valid"),
-            CountTree::new(config(3, 0.1, 3), beckmann(0.01)).expect("valid"),
+            exact.clone(),
+            tree(config(2, 0.1, 0)),
+            tree(config(3, 0.1, 3)),
+            tree(CountTreeConfig {
+                cached_levels: 0,
+                node_budget: 50,
+                ..config(4, 0.1, 0)
+            }),
+            tree(CountTreeConfig {
+                node_budget: 9,
+                max_depth: 12,
+                ..config(5, 0.0, 0)
+            }),
+            tree(CountTreeConfig {
+                node_budget: 5,
+                ..config(6, 0.1, 0)
+            }),
+            exact,
         ];
         let wi = DVec3::new(0.1, 0.05, 1.0).normalize();
         let wo = DVec3::new(-0.1, -0.05, 1.0).normalize();
@@ -177,26 +216,43 @@ mod tests {
                 (state >> 11) as f64 / (1u64 << 53) as f64
             }
         };
-        for i in 0..600 {
-            let side = 2e-5 * (1.0 + uniform());
-            // Around a few points (a pixel's samples), or with the box's left or lower edge on
-            // a dyadic line of level 2 to 9 (the spine's boxes), or its right or upper edge.
-            let centre = DVec2::new(0.3 + 0.1 * f64::from(i % 3), 0.6) + 1e-4 * uniform();
-            let line = (1 + (i / 3) % 7) as f64 / f64::from(1u32 << (2 + i % 8));
-            let half = DVec2::splat(0.5 * side);
-            let (x, y) = match i % 4 {
-                0 => (line + half.x, centre.y),
-                1 => (centre.x, line - half.y),
-                _ => (centre.x, centre.y),
+        let tiny = |e: i32| 2f64.powi(e);
+        for i in 0..1400u32 {
+            // Edges of about 2e-5, rotated and sheared; every 7th a sliver 1e-13 wide.
+            let angle = std::f64::consts::TAU * uniform();
+            let (sin, cos) = angle.sin_cos();
+            let width = if i % 7 == 6 {
+                1e-13
+            } else {
+                2e-5 * (1.0 + uniform())
             };
-            let footprint = Footprint::new(
-                DVec2::new(x, y),
-                DVec2::new(side, 0.0),
-                DVec2::new(0.0, side),
-            )
-            .expect("finite");
-            let tree = &trees[i as usize % 3];
-            if let Some(start) = shared.spines.of(tree.id).start(footprint.bounds()) {
+            let shear = 0.5 * (uniform() - 0.5);
+            let edges = DMat2::from_cols_array(&[cos, sin, -sin, cos])
+                * DMat2::from_cols_array(&[2e-5, 0.0, shear * 2e-5, width]);
+            let half = 0.5 * (edges.x_axis.abs() + edges.y_axis.abs());
+            // Runs of ten queries per tree, around one point per run: most around it (a
+            // pixel's samples), some with the bounding box's left edge on the dyadic line of
+            // level 2 to 9 just left of it (a spine box's edge), some with its lower edge at
+            // 2⁻⁶⁰, 2⁻⁵⁴ or 2⁻⁵³ when the run's point is at the texture's edge v = 0.
+            let run = i / 10;
+            let base = match run % 3 {
+                0 => DVec2::new(0.3 + 0.01 * f64::from(run % 7), 0.6),
+                1 => DVec2::new(0.7, 0.2 + 0.01 * f64::from(run % 5)),
+                _ => DVec2::new(0.45, 0.0),
+            };
+            let level = 2 + (i / 3) % 8;
+            let line = (base.x * f64::from(1u32 << level)).floor() / f64::from(1u32 << level);
+            let edge = [tiny(-60), tiny(-54), tiny(-53)][(i / 3) as usize % 3];
+            let near = base + DVec2::splat(half.max_element()) + 1e-4 * uniform();
+            let uv = match i % 3 {
+                0 => DVec2::new(line + half.x, near.y),
+                1 if run % 3 == 2 => DVec2::new(near.x, edge + half.y),
+                _ => near,
+            };
+            let footprint = Footprint::new(uv, edges.x_axis, edges.y_axis).expect("finite");
+            let tree = &trees[run as usize % trees.len()];
+            let bound = footprint.parameter_map_bound();
+            if let Some(start) = shared.spines.of(tree.id).start(footprint.bounds(), bound) {
                 started_deep += usize::from(start.level >= 6);
             }
             let warm = tree.query(&footprint, &conic, &mut shared);
