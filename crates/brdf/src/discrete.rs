@@ -228,6 +228,32 @@ impl DiscreteBrdf {
         })
     }
 
+    /// The same material with its particle set built for another expected footprint area
+    /// (Eq. 11): what [`DiscreteBrdf::new`] builds with that `expected_footprint_area`, a
+    /// different particle set of the same law, but faster: Alg. 2's table, the directional
+    /// splits, the sampler, the smooth limit and the negligible-query test (which depend on the
+    /// law of normals only) are shared.
+    ///
+    /// # Errors
+    /// [`BrdfError::InvalidExpectedFootprintArea`] unless `area` is positive and finite.
+    pub fn with_expected_footprint_area(&self, area: f64) -> Result<Self, BrdfError> {
+        if !(area > 0.0 && area.is_finite()) {
+            return Err(BrdfError::InvalidExpectedFootprintArea { area });
+        }
+        Ok(Self {
+            parameters: GlintParameters {
+                expected_footprint_area: area,
+                ..self.parameters
+            },
+            tree: self.tree.with_expected_query_area(area)?,
+            smooth: self.smooth,
+            sampler: self.sampler.clone(),
+            cone_solid_angle: self.cone_solid_angle,
+            cone: self.cone,
+            negligible_test: self.negligible_test,
+        })
+    }
+
     /// The parameters.
     #[must_use]
     pub fn parameters(&self) -> &GlintParameters {

@@ -271,6 +271,44 @@ mod tests {
         ]
     }
 
+    /// A material rebuilt for another expected footprint area (sharing its tables, sampler
+    /// and negligible-query test) answers exactly as one built for that area from its
+    /// parameters, and differently from the original (another particle set of the same law).
+    #[test]
+    fn a_material_rebuilt_for_another_area_is_the_one_built_for_it() {
+        for negligible_count in [0.0, 1e-12] {
+            let original = material(0.5, negligible_count);
+            let mut differs = 0;
+            for area in [1e-9, 3e-7, 1e-4] {
+                let rebuilt = original
+                    .with_expected_footprint_area(area)
+                    .expect("a valid area");
+                let mut parameters = *original.parameters();
+                parameters.expected_footprint_area = area;
+                let built = DiscreteBrdf::new(parameters).expect("valid parameters");
+                assert_eq!(rebuilt.parameters(), built.parameters());
+                let mut scratch = QueryScratch::new();
+                for i in 0..20 {
+                    let fp = footprint(i);
+                    for (wi, wo) in directions() {
+                        let answer = rebuilt.at(&fp, &mut scratch).evaluate(wi, wo);
+                        assert_eq!(answer, built.at(&fp, &mut scratch).evaluate(wi, wo));
+                        let bound = |brdf: &DiscreteBrdf, scratch: &mut QueryScratch| {
+                            brdf.at(&fp, scratch).expected_count_bound(wi, wo).to_bits()
+                        };
+                        assert_eq!(bound(&rebuilt, &mut scratch), bound(&built, &mut scratch));
+                        let before = original.at(&fp, &mut scratch).evaluate(wi, wo);
+                        differs += usize::from(answer.nodes_visited != before.nodes_visited);
+                    }
+                }
+            }
+            assert!(differs > 10, "{differs} answers differ from the original's");
+            for area in [0.0, -1e-6, f64::NAN, f64::INFINITY] {
+                assert!(original.with_expected_footprint_area(area).is_err());
+            }
+        }
+    }
+
     #[test]
     fn the_materials_own_cone_is_the_gamma_path_bit_for_bit() {
         for negligible_count in [0.0, 1e-12, 10.0] {

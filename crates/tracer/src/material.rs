@@ -86,6 +86,20 @@ impl GlintMaterial {
         self.rebuilt(|parameters| parameters.seed = seed)
     }
 
+    /// The same material with its particle set built for the expected footprint area `area`
+    /// (Eq. 11; [`glint_brdf::DiscreteBrdf::with_expected_footprint_area`]: only the tree's
+    /// top levels are built again).
+    ///
+    /// # Errors
+    /// A [`glint_brdf::BrdfError`] unless `area` is positive and finite.
+    pub fn with_expected_footprint_area(&self, area: f64) -> Result<Self, glint_brdf::BrdfError> {
+        Ok(Self {
+            brdf: Arc::new(self.brdf.with_expected_footprint_area(area)?),
+            uv_scale: self.uv_scale,
+            plan_footprint_area: self.plan_footprint_area,
+        })
+    }
+
     /// The same material with its parameters changed by `change` (rebuilds the tree: ~2 ms).
     ///
     /// # Errors

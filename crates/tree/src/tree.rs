@@ -165,6 +165,12 @@ pub fn expected_conic_solid_angle(gamma: f64) -> f64 {
     std::f64::consts::PI * (0.5 * gamma).sin().powi(2)
 }
 
+/// A tree identity no other tree has had (clones share theirs): the key of its memo entries.
+fn fresh_id() -> u64 {
+    static NEXT_ID: AtomicU64 = AtomicU64::new(1);
+    NEXT_ID.fetch_add(1, Ordering::Relaxed)
+}
+
 /// The count tree of one material.
 #[derive(Clone)]
 pub struct CountTree {
@@ -252,13 +258,38 @@ impl CountTree {
         let quadrature = NdfQuadrature::build(density.as_ref(), config.quadrature)?;
         let directional_splits =
             DirectionalSplits::build(&quadrature, density.as_ref(), CACHED_DIRECTIONAL_LEVELS);
-        static NEXT_ID: AtomicU64 = AtomicU64::new(1);
         let mut tree = Self {
-            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            id: fresh_id(),
             config,
             quadrature,
             density,
             directional_splits,
+            top_levels: TopLevels::default(),
+        };
+        tree.top_levels = tree.build_top_levels();
+        Ok(tree)
+    }
+
+    /// The tree of the same material built for another expected footprint area (Eq. 11's
+    /// E[A(query)]): what [`CountTree::new`] builds with that `config.expected_query_area`, a
+    /// different particle set of the same law. Alg. 2's table and the directional splits do
+    /// not depend on the area and are shared; only the top levels are built again.
+    ///
+    /// # Errors
+    /// [`TreeError::InvalidExpectedQuery`] unless `area` is positive and finite.
+    pub fn with_expected_query_area(&self, area: f64) -> Result<Self, TreeError> {
+        if !(area > 0.0 && area.is_finite()) {
+            return Err(TreeError::InvalidExpectedQuery);
+        }
+        let mut tree = Self {
+            id: fresh_id(),
+            config: CountTreeConfig {
+                expected_query_area: area,
+                ..self.config
+            },
+            quadrature: self.quadrature.clone(),
+            density: Arc::clone(&self.density),
+            directional_splits: self.directional_splits.clone(),
             top_levels: TopLevels::default(),
         };
         tree.top_levels = tree.build_top_levels();
