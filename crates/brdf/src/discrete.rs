@@ -228,24 +228,30 @@ impl DiscreteBrdf {
         })
     }
 
-    /// The same material with its particle set built for another expected footprint area
-    /// (Eq. 11): what [`DiscreteBrdf::new`] builds with that `expected_footprint_area`, a
-    /// different particle set of the same law, but faster: Alg. 2's table, the directional
-    /// splits, the sampler, the smooth limit and the negligible-query test (which depend on the
-    /// law of normals only) are shared.
+    /// The same material with another particle set of the same law: `seed` and the expected
+    /// footprint area of Eq. 11 replaced, what [`DiscreteBrdf::new`] builds with them, but
+    /// faster: Alg. 2's table, the directional splits, the sampler, the smooth limit and the
+    /// negligible-query test (which depend on the law of normals only) are shared, and only the
+    /// tree's top levels are built again.
     ///
     /// # Errors
-    /// [`BrdfError::InvalidExpectedFootprintArea`] unless `area` is positive and finite.
-    pub fn with_expected_footprint_area(&self, area: f64) -> Result<Self, BrdfError> {
+    /// [`BrdfError::InvalidExpectedFootprintArea`] unless the area is positive and finite.
+    pub fn with_realization(
+        &self,
+        seed: u64,
+        expected_footprint_area: f64,
+    ) -> Result<Self, BrdfError> {
+        let area = expected_footprint_area;
         if !(area > 0.0 && area.is_finite()) {
             return Err(BrdfError::InvalidExpectedFootprintArea { area });
         }
         Ok(Self {
             parameters: GlintParameters {
-                expected_footprint_area: area,
+                seed,
+                expected_footprint_area,
                 ..self.parameters
             },
-            tree: self.tree.with_expected_query_area(area)?,
+            tree: self.tree.with_realization(seed, expected_footprint_area)?,
             smooth: self.smooth,
             sampler: self.sampler.clone(),
             cone_solid_angle: self.cone_solid_angle,

@@ -271,20 +271,24 @@ mod tests {
         ]
     }
 
-    /// A material rebuilt for another expected footprint area (sharing its tables, sampler
-    /// and negligible-query test) answers exactly as one built for that area from its
-    /// parameters, and differently from the original (another particle set of the same law).
+    /// A material rebuilt with another seed or expected footprint area (sharing its tables,
+    /// sampler and negligible-query test) answers exactly as one built from those parameters,
+    /// and differently from the original (another particle set of the same law).
     #[test]
-    fn a_material_rebuilt_for_another_area_is_the_one_built_for_it() {
+    fn a_material_with_another_realization_is_the_one_built_for_it() {
         for negligible_count in [0.0, 1e-12] {
             let original = material(0.5, negligible_count);
+            let seed = original.parameters().seed;
             let mut differs = 0;
-            for area in [1e-9, 3e-7, 1e-4] {
-                let rebuilt = original
-                    .with_expected_footprint_area(area)
-                    .expect("a valid area");
+            for (seed, area) in [
+                (seed, 1e-9),
+                (seed, 3e-7),
+                (seed ^ 5, 1e-4),
+                (seed + 1, 1e-6),
+            ] {
+                let rebuilt = original.with_realization(seed, area).expect("a valid area");
                 let mut parameters = *original.parameters();
-                parameters.expected_footprint_area = area;
+                (parameters.seed, parameters.expected_footprint_area) = (seed, area);
                 let built = DiscreteBrdf::new(parameters).expect("valid parameters");
                 assert_eq!(rebuilt.parameters(), built.parameters());
                 let mut scratch = QueryScratch::new();
@@ -304,7 +308,7 @@ mod tests {
             }
             assert!(differs > 10, "{differs} answers differ from the original's");
             for area in [0.0, -1e-6, f64::NAN, f64::INFINITY] {
-                assert!(original.with_expected_footprint_area(area).is_err());
+                assert!(original.with_realization(seed, area).is_err());
             }
         }
     }

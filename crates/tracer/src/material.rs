@@ -78,23 +78,25 @@ pub struct GlintMaterial {
 }
 
 impl GlintMaterial {
-    /// The same material with the particle set of `seed` (rebuilds the tree: ~2 ms).
+    /// The same material with the particle set of `seed` ([`Self::with_realization`]).
     ///
     /// # Errors
     /// None in practice: the parameters were valid when the material was built.
     pub fn reseeded(&self, seed: u64) -> Result<Self, glint_brdf::BrdfError> {
-        self.rebuilt(|parameters| parameters.seed = seed)
+        let area = self.brdf.parameters().expected_footprint_area;
+        self.with_realization(seed, area)
     }
 
-    /// The same material with its particle set built for the expected footprint area `area`
-    /// (Eq. 11; [`glint_brdf::DiscreteBrdf::with_expected_footprint_area`]: only the tree's
-    /// top levels are built again).
+    /// The same material with another particle set of the same law, for `seed` and the
+    /// expected footprint area `area` of Eq. 11
+    /// ([`glint_brdf::DiscreteBrdf::with_realization`]: only the tree's top levels are built
+    /// again).
     ///
     /// # Errors
     /// A [`glint_brdf::BrdfError`] unless `area` is positive and finite.
-    pub fn with_expected_footprint_area(&self, area: f64) -> Result<Self, glint_brdf::BrdfError> {
+    pub fn with_realization(&self, seed: u64, area: f64) -> Result<Self, glint_brdf::BrdfError> {
         Ok(Self {
-            brdf: Arc::new(self.brdf.with_expected_footprint_area(area)?),
+            brdf: Arc::new(self.brdf.with_realization(seed, area)?),
             uv_scale: self.uv_scale,
             plan_footprint_area: self.plan_footprint_area,
         })

@@ -20,7 +20,7 @@
 //! [`PLAN_GRID`]² hits with two queries each per candidate, the first candidate counts at most
 //! [`PLAN_NODE_BUDGET`] node visits, and each later one stops counting once it has visited more
 //! nodes than it may to be chosen. Candidates share the material's tables and negligible-query
-//! test ([`GlintMaterial::with_expected_footprint_area`]); on the scenes in `scenes/` the run
+//! test ([`GlintMaterial::with_realization`]); on the scenes in `scenes/` the run
 //! adds 0.01–0.14 s to loading.
 //!
 //! The plan selects which particle set (of the same distribution) the scene renders, so it
@@ -272,7 +272,8 @@ pub fn planned_area(
     let mut cost = |k: i32, limit: u64| -> Result<u64, glint_brdf::BrdfError> {
         // The queries are those the material's negligible-query test keeps, and the
         // candidate keeps that test (it does not depend on the area): it skips none of them.
-        let candidate = glint.with_expected_footprint_area(mean * 4f64.powi(k))?;
+        let seed = glint.brdf.parameters().seed;
+        let candidate = glint.with_realization(seed, mean * 4f64.powi(k))?;
         Ok(nodes_visited(
             &candidate.brdf,
             &queries,
@@ -321,7 +322,7 @@ pub fn apply(scene: &mut Scene) -> Result<(), glint_brdf::BrdfError> {
             }
             match planned_area(glint, &on_it)? {
                 Some(area) if area != glint.brdf.parameters().expected_footprint_area => {
-                    glint.with_expected_footprint_area(area)
+                    glint.with_realization(glint.brdf.parameters().seed, area)
                 }
                 _ => Ok(glint.clone()),
             }

@@ -270,21 +270,22 @@ impl CountTree {
         Ok(tree)
     }
 
-    /// The tree of the same material built for another expected footprint area (Eq. 11's
-    /// E[A(query)]): what [`CountTree::new`] builds with that `config.expected_query_area`, a
-    /// different particle set of the same law. Alg. 2's table and the directional splits do
-    /// not depend on the area and are shared; only the top levels are built again.
+    /// The tree of the same material with another particle set of the same law: the material
+    /// `seed` and Eq. 11's expected footprint area E[A(query)] replaced, what
+    /// [`CountTree::new`] builds with them. Alg. 2's table and the directional splits depend on
+    /// neither and are shared; only the top levels are built again.
     ///
     /// # Errors
-    /// [`TreeError::InvalidExpectedQuery`] unless `area` is positive and finite.
-    pub fn with_expected_query_area(&self, area: f64) -> Result<Self, TreeError> {
-        if !(area > 0.0 && area.is_finite()) {
+    /// [`TreeError::InvalidExpectedQuery`] unless `expected_query_area` is positive and finite.
+    pub fn with_realization(&self, seed: u64, expected_query_area: f64) -> Result<Self, TreeError> {
+        if !(expected_query_area > 0.0 && expected_query_area.is_finite()) {
             return Err(TreeError::InvalidExpectedQuery);
         }
         let mut tree = Self {
             id: fresh_id(),
             config: CountTreeConfig {
-                expected_query_area: area,
+                seed,
+                expected_query_area,
                 ..self.config
             },
             quadrature: self.quadrature.clone(),
