@@ -119,6 +119,7 @@ impl CountTree {
         let root = self.root();
         let (first, level) = match spine.start(bounds, footprint.parameter_map_bound()) {
             Some(start) => {
+                debug_assert!(spine.skipped_levels_hold(start.level, footprint));
                 visited = start.visited;
                 overlapping = start.level as u32;
                 (start.node, start.level)

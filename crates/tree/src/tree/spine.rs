@@ -40,7 +40,8 @@
 
 use glam::DVec2;
 
-use super::particles::Node;
+use super::particles::{Node, quarter_min};
+use crate::footprint::{BoxOverlap, Footprint};
 
 /// Trees whose spines a scratch keeps (a scene's materials take turns at a slot).
 const SPINE_SLOTS: usize = 4;
@@ -119,6 +120,26 @@ impl Spine {
             level,
             node: self.nodes[level],
             visited: 1 + self.visits[..level].iter().sum::<u32>(),
+        })
+    }
+
+    /// Whether a full traversal answers the levels above `level` as the spine assumes for
+    /// `footprint`: every node on the path meets it partly, and the other quarters of its box
+    /// are disjoint from it. Debug builds check this at every start.
+    pub(super) fn skipped_levels_hold(&self, level: usize, footprint: &Footprint) -> bool {
+        let partly = BoxOverlap {
+            inside: 0,
+            partial: 1,
+        };
+        self.nodes.windows(2).take(level).all(|pair| {
+            let (node, child) = (&pair[0], &pair[1]);
+            footprint.overlap_box(node.box_min, node.box_size()) == partly
+                && (0..4).map(|j| quarter_min(node, j)).all(|corner| {
+                    corner == child.box_min
+                        || footprint
+                            .overlap_box(corner, child.box_size())
+                            .is_disjoint()
+                })
         })
     }
 
