@@ -502,6 +502,92 @@ power = 20
         assert!(dense.nodes_per_query() > sparse.nodes_per_query() + 4.0);
     }
 
+    /// A BRDF sample's f (a glint query) is computed only where the path can still gain from
+    /// it. A glint floor under the sun alone sends every BRDF-sampled ray into a black sky, so
+    /// a path of up to five bounces makes exactly the queries and the image of direct
+    /// lighting: one query per camera sample, for the sun, not two. A mirror the sampled rays
+    /// meet, which sends them on into the sky, changes neither; one that sends them on to a
+    /// light does.
+    #[test]
+    fn glint_queries_skip_brdf_samples_that_gain_nothing() {
+        let floor = r#"
+[render]
+resolution = [16, 12]
+spp = 4
+integrator = "path"
+max_depth = 5
+[camera]
+position = [0, 1, 0]
+look_at = [0, 0, -1]
+fov = 40
+[materials.glitter]
+type = "glint"
+alpha = 0.3
+particles = 1e6
+gamma = 5
+negligible_count = 0
+[materials.mirror]
+type = "mirror"
+colour = 0.9
+[[shapes]]
+type = "rectangle"
+center = [0, 0, 0]
+u = [40, 0, 0]
+v = [0, 0, -40]
+material = "glitter"
+[[lights]]
+type = "directional"
+direction = [0, 4, -1]
+irradiance = 1
+"#;
+        // Out of the camera's view (the floor fills it) and below the sun's shadow rays, it
+        // faces the camera: the floor's sampled rays that meet it go back up into the sky.
+        let mirror = r#"
+[[shapes]]
+type = "rectangle"
+center = [0, 1.25, -3]
+u = [40, 0, 0]
+v = [0, 2.5, 0]
+material = "mirror"
+"#;
+        let run = |text: &str| {
+            let s = scene(text);
+            let output = render(&s, &s.settings, 0.0, &|_, _| {}).unwrap();
+            (
+                output.statistics.glint.queries,
+                output.image,
+                output.statistics.rays,
+            )
+        };
+        let (direct_queries, direct, _) = run(&floor.replace("\"path\"", "\"direct\""));
+        let (path_queries, path, path_rays) = run(floor);
+        let (mirror_queries, mirrored, mirror_rays) = run(&format!("{floor}{mirror}"));
+        let samples = 16 * 12 * 4;
+        assert_eq!(direct_queries, samples);
+        assert_eq!(path_queries, samples);
+        assert_eq!(mirror_queries, samples);
+        assert!(mean(&direct).max_element() > 0.0);
+        assert_eq!(path.pixels, direct.pixels);
+        assert_eq!(mirrored.pixels, direct.pixels);
+        // A quarter of the samples' BRDF rays, at least, meet the mirror and are followed
+        // past it (a ray each).
+        assert!(
+            mirror_rays > path_rays + samples / 4,
+            "{mirror_rays} rays, {path_rays} without the mirror"
+        );
+        // Where the mirror sends them on to a light, their f is computed: with a sphere light
+        // above the camera, in their way.
+        let light = r#"
+[[lights]]
+type = "sphere"
+center = [0, 6, 2]
+radius = 3
+power = 100
+"#;
+        let (lit_queries, _, _) = run(&format!("{floor}{mirror}{light}"));
+        assert!(lit_queries > samples + samples / 8, "{lit_queries} queries");
+    }
+
     /// The film takes every sample's radiance explicitly: non-finite ones are discarded and
     /// counted, those above the cap clamped to it and counted, so that a pixel is always
     /// finite and at most MAX_SAMPLE_RADIANCE.

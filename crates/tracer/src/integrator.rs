@@ -269,6 +269,10 @@ pub(crate) fn offset_origin(point: DVec3, normal: DVec3, direction: DVec3) -> DV
     }
 }
 
+/// The most perfect mirrors [`EmissionWeighting::gains_beyond`] follows before it answers
+/// that the path may gain (each costs a ray that the path traces again).
+const MIRROR_LOOKAHEAD: u32 = 4;
+
 /// How emission found by BRDF-sampled rays is weighted.
 #[derive(Clone, Copy, Debug)]
 struct EmissionWeighting {
@@ -300,6 +304,66 @@ impl EmissionWeighting {
                         && light.emitted(ray.direction, hit.surface.uv) != DVec3::ZERO
                 }),
         }
+    }
+
+    /// Whether the path can still gain radiance beyond the BRDF-sampled `ray` of the vertex at
+    /// `depth` (with depth + 1 < `max_depth`), which hits `next`: false exactly where every later
+    /// contribution is 0, so that the vertex's f (a glint query) is not needed. The path ends
+    /// where the ray escapes or meets an emitter (which does not reflect), adding only their
+    /// emission; a chain of perfect mirrors is followed (deterministic, so the rays are the
+    /// ones the path will trace) to where it escapes, meets an emitter, or runs out of depth.
+    /// Anything else, such as a surface the path shades, answers true. Counts its rays in
+    /// `rays`.
+    #[allow(clippy::too_many_arguments)]
+    fn gains_beyond(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        next: Option<&PrimitiveHit>,
+        cones: Option<&ConeVertex>,
+        depth: u32,
+        max_depth: u32,
+        rays: &mut u64,
+    ) -> bool {
+        let primitives = scene.accelerator.primitives();
+        let Some(mut hit) = next.copied() else {
+            return self.finds_emission(scene, ray, None, cones);
+        };
+        if primitives[hit.primitive].light.is_some() {
+            return self.finds_emission(scene, ray, Some(&hit), cones);
+        }
+        let mut ray = *ray;
+        // `hit` is the vertex at `hit_depth`.
+        for hit_depth in depth + 1..=depth + MIRROR_LOOKAHEAD {
+            if hit_depth >= max_depth {
+                return false;
+            }
+            if !matches!(
+                scene.materials[primitives[hit.primitive].material as usize],
+                Material::Mirror(_)
+            ) {
+                return true;
+            }
+            let (geometric_normal, frame) = Frame::facing(&hit.surface, ray.direction);
+            let Some(reflected) = mirror_reflection(&hit.surface, &frame, geometric_normal, &ray)
+            else {
+                return false;
+            };
+            ray = reflected;
+            // Beyond a mirror, emission counts unweighted (as for camera rays).
+            *rays += 1;
+            match scene.intersect(&ray, f64::INFINITY) {
+                None => return scene.escaped(ray.direction) != DVec3::ZERO,
+                Some(h) => match primitives[h.primitive].light {
+                    Some(i) => {
+                        let light = &scene.lights[i as usize];
+                        return light.emitted(ray.direction, h.surface.uv) != DVec3::ZERO;
+                    }
+                    None => hit = h,
+                },
+            }
+        }
+        true
     }
 
     /// The radiance that `ray` carries back from what it hits (an area light) or, when it
@@ -403,9 +467,13 @@ pub fn radiance(
         GlintFootprints::FirstHit | GlintFootprints::All => Some(*camera_ray),
     };
     let mut depth = 0u32;
+    // What `ray` hits, when the previous vertex traced it before computing its f (below).
+    let mut traced: Option<Option<PrimitiveHit>> = None;
     loop {
-        state.rays += 1;
-        let hit = scene.intersect(&ray, f64::INFINITY);
+        let hit = traced.take().unwrap_or_else(|| {
+            state.rays += 1;
+            scene.intersect(&ray, f64::INFINITY)
+        });
         radiance += throughput
             * weighting.emitted_along(scene, &ray, hit.as_ref(), previous, previous_cones.as_ref());
         let Some(hit) = hit else {
@@ -541,13 +609,14 @@ pub fn radiance(
             origin: offset_origin(surface.point, geometric_normal, direction),
             direction,
         };
-        // f goes before the pdf (a quadrature over the cone for glints): where f is 0, as for
-        // most glint queries, the sample adds nothing and the pdf is not needed.
+        // The ray goes before f (a tree query for glints) and the pdf: where the path ends at
+        // what the ray hits, only emission along it can still count, so f and the pdf are
+        // computed only when there is some. And f goes before the pdf (a quadrature over the
+        // cone for glints): where f is 0, as for most glint queries, the pdf is not needed.
+        state.rays += 1;
+        let next = scene.intersect(&ray, f64::INFINITY);
         if depth + 1 >= max_depth {
-            // The last bounce: only emission along this ray can still count, so f (a tree
-            // query) and the pdf are computed only when there is some.
-            state.rays += 1;
-            let next = scene.intersect(&ray, f64::INFINITY);
+            // The last bounce.
             if weighting.finds_emission(scene, &ray, next.as_ref(), cones.as_ref()) {
                 let f = material.eval(wi, wo, &mut ctx);
                 let pdf = if f == DVec3::ZERO {
@@ -569,6 +638,18 @@ pub fn radiance(
             }
             break;
         }
+        if !weighting.gains_beyond(
+            scene,
+            &ray,
+            next.as_ref(),
+            cones.as_ref(),
+            depth,
+            max_depth,
+            &mut state.rays,
+        ) {
+            break;
+        }
+        traced = Some(next);
         let f = material.eval(wi, wo, &mut ctx);
         if f == DVec3::ZERO {
             break;
