@@ -76,10 +76,11 @@ fn same_query_is_bit_identical_in_any_thread_and_order() {
     assert!(forward.iter().any(|r| r.count > 0.0));
 }
 
-/// A scratch remembers split counts and leaves' particle positions across queries (and
-/// trees): neighbouring and overlapping footprints, queried through one scratch with three
-/// trees interleaved (one coloured), answer exactly as each does with a fresh scratch, nodes
-/// visited and areas included.
+/// A scratch remembers split counts and leaves' particle positions and normals across queries
+/// (and trees): neighbouring and overlapping footprints, queried through one scratch with
+/// three trees interleaved (one coloured) and conics taking turns (normals a descent reached
+/// for one conic are tested against the others), answer exactly as each does with a fresh
+/// scratch, nodes visited and areas included.
 #[test]
 fn remembered_counts_and_leaves_change_no_answer() {
     let coloured = CountTreeConfig {
@@ -93,7 +94,16 @@ fn remembered_counts_and_leaves_change_no_answer() {
         beckmann_tree(0.1, 100_000_000, 6, 0.1, MultinomialMode::Exact),
         CountTree::new(coloured, glint_tests::counts::beckmann_density(0.15, 0.15)).unwrap(),
     ];
-    let conic = near_specular_conic(2.0);
+    let conics = [
+        near_specular_conic(2.0),
+        near_specular_conic(1.0),
+        SphericalConic::new(
+            direction(0.2, 1.0),
+            direction(0.3, 1.0 + PI),
+            1.5_f64.to_radians(),
+        )
+        .unwrap(),
+    ];
     let mut rng = SplitMix64::new(21);
     // Clusters of footprints around a few points, as a pixel's neighbours (spread 0.03) and
     // its samples (spread 3e-4, overlapping footprints that meet the same leaves).
@@ -109,8 +119,9 @@ fn remembered_counts_and_leaves_change_no_answer() {
     let mut found = 0.0;
     for (i, footprint) in footprints.iter().enumerate() {
         let tree = &trees[i % 3];
-        let warm = tree.query(footprint, &conic, &mut shared);
-        let fresh = tree.query(footprint, &conic, &mut QueryScratch::new());
+        let conic = &conics[i / 2 % 3];
+        let warm = tree.query(footprint, conic, &mut shared);
+        let fresh = tree.query(footprint, conic, &mut QueryScratch::new());
         assert_eq!(warm, fresh, "query {i}");
         found += warm.count;
     }

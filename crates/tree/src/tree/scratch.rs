@@ -18,10 +18,11 @@ use crate::ndf::DirectionalCell;
 use crate::node::NodeId;
 
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
-/// first query allocates 540 KB of memo tables (answers that recur within a query, and split
-/// probabilities, split counts and leaves' particle positions that recur across queries, of
-/// any material: one scratch serves them all), and it keeps the spines of the last four trees
-/// queried (`super::spine`: the spatial path from the root their queries share).
+/// first query allocates 733 KB of memo tables (answers that recur within a query, and split
+/// probabilities, split counts and leaves' particle positions and normals that recur across
+/// queries, of any material: one scratch serves them all), and it keeps the spines of the
+/// last four trees queried (`super::spine`: the spatial path from the root their queries
+/// share).
 #[derive(Debug, Default)]
 pub struct QueryScratch {
     pub(super) queue: Vec<QueuedNode>,
@@ -139,7 +140,7 @@ const SPLIT_MEMO_BITS: u32 = 10;
 /// log₂ of the entries of the table of split counts (2048, 295 KB).
 const COUNTS_MEMO_BITS: u32 = 11;
 
-/// log₂ of the entries of the table of leaves' particle positions (256, 147 KB).
+/// log₂ of the entries of the table of leaves' particle positions and normals (256, 340 KB).
 const LEAVES_MEMO_BITS: u32 = 8;
 
 /// The slot of node `id` of tree `tree` in a table of 2^`bits` entries.
@@ -376,7 +377,25 @@ impl QueryMemo {
                 positions: None,
             };
         }
+        if let Some(positions) = &mut entry.positions {
+            positions.met_again = true;
+        }
         entry.positions.get_or_insert_with(draw)
+    }
+
+    /// What queries have drawn of the particles of `leaf` in `tree`, if it is remembered.
+    #[inline]
+    pub(super) fn remembered_leaf(
+        &mut self,
+        tree: &CountTree,
+        leaf: &Node,
+    ) -> Option<&mut LeafPositions> {
+        let entry = &mut self.leaves[node_slot(tree.id, leaf.id, LEAVES_MEMO_BITS)];
+        if entry.tree == tree.id && entry.id == leaf.id {
+            entry.positions.as_mut()
+        } else {
+            None
+        }
     }
 
     /// The split probabilities of `cell` (whose `children` the caller has) in `tree`, for a

@@ -51,6 +51,10 @@ impl CountTree {
     /// its own order, so the answer is that of descending them one at a time. A descent stops
     /// as soon as its cell is inside the conic or disjoint from it: the classification is
     /// never wrong there, so the answer is that of the normals the full descent would reach.
+    ///
+    /// The normals the descents reach (those that go down to their final cells) are written
+    /// to `reached`.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn normals_in_conic(
         &self,
         cell: &DirectionalCell,
@@ -59,6 +63,7 @@ impl CountTree {
         memo: &mut QueryMemo,
         (stream, particles): (&LeafStream, &mut [LeafParticle]),
         members: u64,
+        reached: &mut ReachedNormals,
     ) -> u64 {
         match classification {
             Classification::Disjoint => return 0,
@@ -69,38 +74,153 @@ impl CountTree {
             let mut inside = 0;
             for k in self::members(members) {
                 let normal = particles[k].normal.point_in(triangle, stream);
+                reached.normals[k] = normal;
                 inside |= u64::from(conic.contains(normal)) << k;
             }
+            reached.bits |= members;
             return inside;
         }
-        let computed;
-        let (children, probabilities) = match self.directional_splits.get(cell) {
-            Some(split) => (&split.children, split.probabilities),
-            None => {
-                computed = cell.children();
-                (&computed, memo.split_probabilities(self, cell, &computed))
+        self.with_split(cell, memo, |memo, children, probabilities| {
+            let mut by_child = [0u64; 4];
+            for k in self::members(members) {
+                by_child[particles[k].normal.step(&probabilities, stream)] |= 1 << k;
+            }
+            let mut inside = 0;
+            for (child, group) in children.iter().zip(by_child) {
+                if group != 0 {
+                    let classification = memo.classify(child, conic);
+                    inside |= self.normals_in_conic(
+                        child,
+                        classification,
+                        conic,
+                        memo,
+                        (stream, particles),
+                        group,
+                        reached,
+                    );
+                }
+            }
+            inside
+        })
+    }
+
+    /// Which of the leaf particles `particles` (up to 64, each descending the law above with
+    /// its own stream, all now in `cell`, which the conic classifies as `classification`) have
+    /// normals in the conic, as [`Self::normals_in_conic`] answers, and the normals reached.
+    /// A particle whose normal an earlier query reached ([`LeafParticle::descended`]) is
+    /// tested directly. The others descend: all the way when `in_full`, so that every normal
+    /// is reached, else until the conic decides them.
+    pub(super) fn leaf_normals_in_conic(
+        &self,
+        (cell, classification): (&DirectionalCell, Classification),
+        conic: &SphericalConic,
+        memo: &mut QueryMemo,
+        (stream, particles): (&LeafStream, &mut [LeafParticle]),
+        in_full: bool,
+    ) -> (u64, ReachedNormals) {
+        let everyone = u64::MAX >> (64 - particles.len());
+        let mut reached = ReachedNormals::NONE;
+        let inside = match classification {
+            Classification::Disjoint => 0,
+            Classification::TriangleInsideConic => everyone,
+            Classification::ConicInsideTriangle | Classification::Partial => {
+                let mut to_descend = 0;
+                let mut inside = 0;
+                for (k, particle) in particles.iter().enumerate() {
+                    match particle.descended {
+                        Some(normal) => inside |= u64::from(conic.contains(normal)) << k,
+                        None => to_descend |= 1 << k,
+                    }
+                }
+                if to_descend == 0 {
+                    inside
+                } else if in_full {
+                    self.descend_normals(cell, memo, (stream, particles), to_descend, &mut reached);
+                    members(to_descend).fold(inside, |inside, k| {
+                        inside | u64::from(conic.contains(reached.normals[k])) << k
+                    })
+                } else {
+                    inside
+                        | self.normals_in_conic(
+                            cell,
+                            classification,
+                            conic,
+                            memo,
+                            (stream, particles),
+                            to_descend,
+                            &mut reached,
+                        )
+                }
             }
         };
-        let mut by_child = [0u64; 4];
-        for k in self::members(members) {
-            by_child[particles[k].normal.step(&probabilities, stream)] |= 1 << k;
+        (inside, reached)
+    }
+
+    /// The normals of the leaf particles `members` (bits indexing `particles`, each descending
+    /// the law above with its own stream, all now in `cell`), written to `reached`: each
+    /// descent goes all the way to its final cell and the normal's point in it. The particles
+    /// descend together as in [`Self::normals_in_conic`], with the same draws, so a normal is
+    /// in a conic exactly when that descent answers that it is (it stops only in a cell the
+    /// conic holds or misses, and is never wrong there).
+    pub(super) fn descend_normals(
+        &self,
+        cell: &DirectionalCell,
+        memo: &mut QueryMemo,
+        (stream, particles): (&LeafStream, &mut [LeafParticle]),
+        members: u64,
+        reached: &mut ReachedNormals,
+    ) {
+        if let Some(triangle) = self.final_cell(cell) {
+            for k in self::members(members) {
+                reached.normals[k] = particles[k].normal.point_in(triangle, stream);
+            }
+            reached.bits |= members;
+            return;
         }
-        let mut inside = 0;
-        for (child, group) in children.iter().zip(by_child) {
-            if group != 0 {
-                let classification = memo.classify(child, conic);
-                inside |= self.normals_in_conic(
-                    child,
-                    classification,
-                    conic,
-                    memo,
-                    (stream, particles),
-                    group,
-                );
+        self.with_split(cell, memo, |memo, children, probabilities| {
+            let mut by_child = [0u64; 4];
+            for k in self::members(members) {
+                by_child[particles[k].normal.step(&probabilities, stream)] |= 1 << k;
+            }
+            for (child, group) in children.iter().zip(by_child) {
+                if group != 0 {
+                    self.descend_normals(child, memo, (stream, particles), group, reached);
+                }
+            }
+        });
+    }
+
+    /// Calls `f` with `cell`'s children and split probabilities: from the tree's table of
+    /// splits, else computed (the probabilities remembered in `memo`).
+    fn with_split<R>(
+        &self,
+        cell: &DirectionalCell,
+        memo: &mut QueryMemo,
+        f: impl FnOnce(&mut QueryMemo, &[DirectionalCell; 4], [f64; 4]) -> R,
+    ) -> R {
+        match self.directional_splits.get(cell) {
+            Some(split) => f(memo, &split.children, split.probabilities),
+            None => {
+                let children = cell.children();
+                let probabilities = memo.split_probabilities(self, cell, &children);
+                f(memo, &children, probabilities)
             }
         }
-        inside
     }
+}
+
+/// The normals that descents of up to 64 particles reached: bit k of `bits` is set when
+/// `normals[k]` holds particle k's.
+pub(super) struct ReachedNormals {
+    pub(super) bits: u64,
+    pub(super) normals: [DVec3; 64],
+}
+
+impl ReachedNormals {
+    pub(super) const NONE: Self = Self {
+        bits: 0,
+        normals: [DVec3::ZERO; 64],
+    };
 }
 
 /// A leaf particle's normal on its way down the directional hierarchy, by inversion: one
@@ -283,7 +403,7 @@ mod tests {
         let tree = CountTree::new(CountTreeConfig::default(), density).expect("valid");
         let centroid = |cell: &DirectionalCell| cell.triangle.map_or(DVec3::Z, |t| t.centroid());
         let mut draws = TeaRng::new([1, 2, 3, 4], 0, 8);
-        let (mut partial_answers, mut found) = (0, 0);
+        let (mut partial_answers, mut found, mut reached_final) = (0, 0, 0);
         // One memo for all trials, as one scratch serves many queries.
         let mut memo = QueryMemo::default();
         for trial in 0..300 {
@@ -325,13 +445,16 @@ mod tests {
                     LeafParticle {
                         normal,
                         multiplicity: 1,
+                        descended: None,
                     }
                 })
                 .collect();
             let mut alone: Vec<NormalDescent> =
                 particles.iter().map(|p| p.normal.clone()).collect();
+            let mut in_full = particles.clone();
             let everyone = u64::MAX >> (64 - count);
             memo.begin_query();
+            let mut reached = ReachedNormals::NONE;
             let grouped = tree.normals_in_conic(
                 &cell,
                 classification,
@@ -339,7 +462,33 @@ mod tests {
                 &mut memo,
                 (&stream, &mut particles),
                 everyone,
+                &mut reached,
             );
+            // The full descents reach normals in the conic exactly where the descents that
+            // stop early answer so, and the normals those reached.
+            let mut full = ReachedNormals::NONE;
+            tree.descend_normals(
+                &cell,
+                &mut memo,
+                (&stream, &mut in_full),
+                everyone,
+                &mut full,
+            );
+            assert_eq!(full.bits, everyone);
+            for k in 0..count as usize {
+                assert_eq!(
+                    conic.contains(full.normals[k]),
+                    grouped >> k & 1 == 1,
+                    "trial {trial} particle {k}: the full descent"
+                );
+                if reached.bits >> k & 1 == 1 {
+                    assert_eq!(
+                        reached.normals[k], full.normals[k],
+                        "trial {trial} particle {k}"
+                    );
+                }
+            }
+            reached_final += reached.bits.count_ones();
             for (k, normal) in alone.iter_mut().enumerate() {
                 let expected =
                     normal_in_conic_alone(&tree, &cell, classification, &conic, &stream, normal);
@@ -359,10 +508,11 @@ mod tests {
             partial_answers += u32::from(grouped != 0 && grouped != everyone);
             found += grouped.count_ones();
         }
-        // The trials exercise descents that split their particles.
+        // The trials exercise descents that split their particles, and descents that go down
+        // to their final cells.
         assert!(
-            partial_answers > 30 && found > 300,
-            "{partial_answers} {found}"
+            partial_answers > 30 && found > 300 && reached_final > 100,
+            "{partial_answers} {found} {reached_final}"
         );
     }
 }
