@@ -76,9 +76,9 @@ fn same_query_is_bit_identical_in_any_thread_and_order() {
     assert!(forward.iter().any(|r| r.count > 0.0));
 }
 
-/// A scratch remembers split counts and leaves' particle positions and normals across queries
-/// (and trees): neighbouring and overlapping footprints, queried through one scratch with
-/// three trees interleaved (one coloured) and conics taking turns (normals a descent reached
+/// A scratch remembers split counts, coloured nodes' areas and leaves' particle positions and
+/// normals across queries (and trees): neighbouring and overlapping footprints, queried
+/// through one scratch with four trees interleaved (two coloured) and conics taking turns (normals a descent reached
 /// for one conic are tested against the others), answer exactly as each does with a fresh
 /// scratch, nodes visited and areas included.
 #[test]
@@ -89,10 +89,19 @@ fn remembered_counts_and_leaves_change_no_answer() {
         colour_channels: 3,
         ..CountTreeConfig::default()
     };
+    let other_coloured = CountTreeConfig {
+        seed: 8,
+        ..coloured
+    };
     let trees = [
         beckmann_tree(0.2, 100_000_000, 5, 0.0, MultinomialMode::Exact),
-        beckmann_tree(0.1, 100_000_000, 6, 0.1, MultinomialMode::Exact),
         CountTree::new(coloured, glint_tests::counts::beckmann_density(0.15, 0.15)).unwrap(),
+        CountTree::new(
+            other_coloured,
+            glint_tests::counts::beckmann_density(0.15, 0.15),
+        )
+        .unwrap(),
+        beckmann_tree(0.1, 100_000_000, 6, 0.1, MultinomialMode::Exact),
     ];
     let conics = [
         near_specular_conic(2.0),
@@ -109,7 +118,11 @@ fn remembered_counts_and_leaves_change_no_answer() {
     // its samples (spread 3e-4, overlapping footprints that meet the same leaves).
     let footprints: Vec<Footprint> = (0..300)
         .map(|i| {
-            let centre = DVec2::new(0.1 + 0.2 * f64::from(i % 4), 0.3 + 0.1 * f64::from(i % 3));
+            let cluster = i / 4;
+            let centre = DVec2::new(
+                0.1 + 0.2 * f64::from(cluster % 4),
+                0.3 + 0.1 * f64::from(cluster % 3),
+            );
             let spread = if i % 2 == 0 { 0.03 } else { 3e-4 };
             let jitter = DVec2::new(rng.uniform(), rng.uniform()) * spread;
             square(centre + jitter, 1e-3)
@@ -118,7 +131,7 @@ fn remembered_counts_and_leaves_change_no_answer() {
     let mut shared = QueryScratch::new();
     let mut found = 0.0;
     for (i, footprint) in footprints.iter().enumerate() {
-        let tree = &trees[i % 3];
+        let tree = &trees[i % 4];
         let conic = &conics[i / 2 % 3];
         let warm = tree.query(footprint, conic, &mut shared);
         let fresh = tree.query(footprint, conic, &mut QueryScratch::new());
@@ -126,6 +139,17 @@ fn remembered_counts_and_leaves_change_no_answer() {
         found += warm.count;
     }
     assert!(found > 0.0, "the queries find particles");
+    // The two coloured trees in turn, with the same footprints and conic: their nodes have
+    // the same identities, and each keeps its own areas.
+    let mut coloured_found = 0.0;
+    for (i, footprint) in footprints.iter().enumerate().take(100) {
+        let tree = &trees[1 + i % 2];
+        let warm = tree.query(footprint, &conics[0], &mut shared);
+        let fresh = tree.query(footprint, &conics[0], &mut QueryScratch::new());
+        assert_eq!(warm, fresh, "coloured query {i}");
+        coloured_found += warm.count;
+    }
+    assert!(coloured_found > 0.0, "the coloured queries find particles");
 }
 
 /// Exact mode: two footprints that tile a third count exactly as many particles.

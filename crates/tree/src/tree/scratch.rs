@@ -18,11 +18,11 @@ use crate::ndf::DirectionalCell;
 use crate::node::NodeId;
 
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
-/// first query allocates 733 KB of memo tables (answers that recur within a query, and split
-/// probabilities, split counts and leaves' particle positions and normals that recur across
-/// queries, of any material: one scratch serves them all), and it keeps the spines of the
-/// last four trees queried (`super::spine`: the spatial path from the root their queries
-/// share).
+/// first query allocates 809 KB of memo tables (answers that recur within a query, and split
+/// probabilities, split counts, coloured nodes' areas and leaves' particle positions and
+/// normals that recur across queries, of any material: one scratch serves them all), and it
+/// keeps the spines of the last four trees queried (`super::spine`: the spatial path from the
+/// root their queries share).
 #[derive(Debug, Default)]
 pub struct QueryScratch {
     pub(super) queue: Vec<QueuedNode>,
@@ -111,10 +111,11 @@ struct FractionEntry {
     fraction: f64,
 }
 
-/// A coloured node with its particle areas drawn (see `CountTree::with_areas`).
+/// A coloured node of a tree (the tree's identity) with its particle areas drawn (see
+/// `CountTree::with_areas`).
 #[derive(Clone, Copy, Debug)]
 struct NodeEntry {
-    generation: u32,
+    tree: u64,
     node: Option<Node>,
 }
 
@@ -131,8 +132,8 @@ struct BoxEntry {
 /// 6 KB) and the box table (256, 10 KB).
 const CLASSIFICATION_MEMO_BITS: u32 = 9;
 const FRACTION_MEMO_BITS: u32 = 8;
-/// log₂ of the entries of the table of nodes with drawn areas (128, 17 KB).
-const AREAS_MEMO_BITS: u32 = 7;
+/// log₂ of the entries of the table of coloured nodes with drawn areas (512, 98 KB).
+const AREAS_MEMO_BITS: u32 = 9;
 const BOX_MEMO_BITS: u32 = 8;
 
 /// log₂ of the entries of the split table (1024, 48 KB).
@@ -170,7 +171,7 @@ impl QueryMemo {
         fraction: 0.0,
     };
     const NO_NODE: NodeEntry = NodeEntry {
-        generation: 0,
+        tree: 0,
         node: None,
     };
     const NO_BOX: BoxEntry = BoxEntry {
@@ -217,7 +218,6 @@ impl QueryMemo {
             // After 2³² queries: entries of generation 0 are never current.
             self.classifications.fill(Self::NO_CLASSIFICATION);
             self.fractions.fill(Self::NO_FRACTION);
-            self.with_areas.fill(Self::NO_NODE);
             self.boxes.fill(Self::NO_BOX);
             self.generation = 1;
         }
@@ -278,27 +278,25 @@ impl QueryMemo {
         fraction
     }
 
-    /// The node `id` with its areas drawn, if this query has drawn them (a query's counted
-    /// nodes share most of their ancestors).
+    /// Node `id` of `tree` with its areas drawn, if a query has drawn them (a query's counted
+    /// nodes share most of their ancestors, and a pixel's samples count the same nodes).
     #[inline]
-    pub(super) fn node_with_areas(&self, id: NodeId) -> Option<Node> {
-        let entry = self.with_areas.get(memo_slot(
-            id.0 as u64 ^ (id.0 >> 64) as u64,
-            AREAS_MEMO_BITS,
-        ))?;
+    pub(super) fn node_with_areas(&self, tree: &CountTree, id: NodeId) -> Option<Node> {
+        let entry = self
+            .with_areas
+            .get(node_slot(tree.id, id, AREAS_MEMO_BITS))?;
         entry
             .node
-            .filter(|node| entry.generation == self.generation && node.id == id)
+            .filter(|node| entry.tree == tree.id && node.id == id)
     }
 
-    /// Remembers `node`, whose areas are drawn, for the rest of the query.
+    /// Remembers `node` of `tree`, whose areas are drawn.
     #[inline]
-    pub(super) fn remember_with_areas(&mut self, node: Node) {
-        let id = node.id;
-        let slot = memo_slot(id.0 as u64 ^ (id.0 >> 64) as u64, AREAS_MEMO_BITS);
+    pub(super) fn remember_with_areas(&mut self, tree: &CountTree, node: Node) {
+        let slot = node_slot(tree.id, node.id, AREAS_MEMO_BITS);
         if let Some(entry) = self.with_areas.get_mut(slot) {
             *entry = NodeEntry {
-                generation: self.generation,
+                tree: tree.id,
                 node: Some(node),
             };
         }

@@ -103,7 +103,7 @@ impl CountTree {
             let j = usize::from(j);
             current = match self.top_levels.get(&current) {
                 Some((children, _)) => children[j],
-                None => match memo.node_with_areas(current.id.child(j)) {
+                None => match memo.node_with_areas(self, current.id.child(j)) {
                     Some(child) => child,
                     None => {
                         let mut child = current;
@@ -114,7 +114,7 @@ impl CountTree {
                             }
                             k += 1;
                         });
-                        memo.remember_with_areas(child);
+                        memo.remember_with_areas(self, child);
                         child
                     }
                 },
