@@ -611,8 +611,10 @@ pub fn radiance(
         };
         // The ray goes before f (a tree query for glints) and the pdf: where the path ends at
         // what the ray hits, only emission along it can still count, so f and the pdf are
-        // computed only when there is some. And f goes before the pdf (a quadrature over the
-        // cone for glints): where f is 0, as for most glint queries, the pdf is not needed.
+        // computed only when there is some (a throughput that would overflow there is not
+        // computed either: the sample keeps what it has gathered). And f goes before the pdf
+        // (a quadrature over the cone for glints): where f is 0, as for most glint queries, the
+        // pdf is not needed.
         state.rays += 1;
         let next = scene.intersect(&ray, f64::INFINITY);
         if depth + 1 >= max_depth {
