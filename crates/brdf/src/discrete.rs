@@ -316,7 +316,24 @@ impl DiscreteBrdf {
         footprint: &Footprint,
         scratch: &mut QueryScratch,
     ) -> Option<ConicQuery> {
-        let conic = self.conic(wi, wo)?;
+        self.query_if(wi, wo, footprint, scratch, || true)
+            .unwrap_or(None)
+    }
+
+    /// [`Self::query`] where `traverse()` holds, asking it only before a traversal: a query
+    /// that needs none (no conic, or skipped as negligible) answers without it. `None` when
+    /// `traverse()` said no.
+    pub(crate) fn query_if(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        footprint: &Footprint,
+        scratch: &mut QueryScratch,
+        traverse: impl FnOnce() -> bool,
+    ) -> Option<Option<ConicQuery>> {
+        let Some(conic) = self.conic(wi, wo) else {
+            return Some(None);
+        };
         let (wi, wo) = (conic.wi(), conic.wo());
         if let Some(test) = &self.negligible_test {
             let bound = test.bound(
@@ -326,7 +343,7 @@ impl DiscreteBrdf {
                 &conic,
             );
             if bound < self.parameters.negligible_count {
-                return Some(ConicQuery {
+                return Some(Some(ConicQuery {
                     result: QueryResult {
                         count: 0.0,
                         d_hat: [0.0; 3],
@@ -337,17 +354,20 @@ impl DiscreteBrdf {
                     },
                     f_hat: DVec3::ZERO,
                     negligible: Some(bound),
-                });
+                }));
             }
+        }
+        if !traverse() {
+            return None;
         }
         let result = self.tree.query(footprint, &conic, scratch);
         let f_hat =
             self.f_hat_from_d_hat(wi, wo, DVec3::from_array(result.d_hat), footprint.area());
-        Some(ConicQuery {
+        Some(Some(ConicQuery {
             result,
             f_hat,
             negligible: None,
-        })
+        }))
     }
 
     /// The conic of normals reflecting ω_i into the cone around ω_o (Eq. 8), which normalizes

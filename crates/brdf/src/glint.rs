@@ -12,7 +12,7 @@ use glint_tree::{Footprint, QueryScratch};
 
 use crate::bxdf::{Bxdf, BxdfSample};
 use crate::cone::cone_solid_angle;
-use crate::discrete::DiscreteBrdf;
+use crate::discrete::{ConicQuery, DiscreteBrdf};
 
 /// One glint evaluation with what its tree query found (the statistics of the paper's
 /// Table 1).
@@ -35,6 +35,21 @@ pub struct GlintEvaluation {
 }
 
 impl GlintEvaluation {
+    /// The evaluation from a query's answer (`None`: the directions admit no query).
+    fn of(query: Option<ConicQuery>) -> Self {
+        match query {
+            Some(query) => Self {
+                f_hat: query.f_hat,
+                d_hat: DVec3::from_array(query.result.d_hat),
+                count: query.result.count,
+                nodes_visited: query.result.nodes_visited,
+                nodes_overlapping: query.result.nodes_overlapping,
+                negligible: query.negligible,
+            },
+            None => Self::NONE,
+        }
+    }
+
     /// The evaluation of directions that admit no query (below the horizon, not finite).
     const NONE: Self = Self {
         f_hat: DVec3::ZERO,
@@ -87,17 +102,27 @@ impl<'a> GlintBxdf<'a> {
     #[must_use]
     pub fn evaluate(&self, wi: DVec3, wo: DVec3) -> GlintEvaluation {
         let mut scratch = self.scratch.borrow_mut();
-        match self.brdf.query(wi, wo, self.footprint, &mut scratch) {
-            Some(query) => GlintEvaluation {
-                f_hat: query.f_hat,
-                d_hat: DVec3::from_array(query.result.d_hat),
-                count: query.result.count,
-                nodes_visited: query.result.nodes_visited,
-                nodes_overlapping: query.result.nodes_overlapping,
-                negligible: query.negligible,
-            },
-            None => GlintEvaluation::NONE,
-        }
+        GlintEvaluation::of(self.brdf.query(wi, wo, self.footprint, &mut scratch))
+    }
+
+    /// [`Self::evaluate`] where `visible()` holds, calling it only if the answer needs a tree
+    /// traversal: directions that admit no query, and queries skipped as negligible, answer
+    /// without it (f̂ = 0). `None` when `visible()` said no (nothing was evaluated).
+    ///
+    /// For a light sample, pass the shadow-ray test as `visible`: a glint query costs
+    /// microseconds and a shadow ray a fraction of one, so the ray should go before the
+    /// traversal, but after the negligible test, which costs less than the ray and, far from
+    /// the highlight, makes it unnecessary.
+    pub fn evaluate_if(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        visible: impl FnOnce() -> bool,
+    ) -> Option<GlintEvaluation> {
+        let mut scratch = self.scratch.borrow_mut();
+        self.brdf
+            .query_if(wi, wo, self.footprint, &mut scratch, visible)
+            .map(GlintEvaluation::of)
     }
 
     /// The expected count N·a(A)·∫_{Ω_h} p(m) dm of the query (ω_i, ω_o), from the tree's NDF
@@ -311,6 +336,50 @@ mod tests {
                 assert!(original.with_realization(seed, area).is_err());
             }
         }
+    }
+
+    /// `evaluate_if` answers as `evaluate` where its test holds, and asks the test exactly
+    /// when the answer needs a traversal: not for queries skipped as negligible, nor for
+    /// directions that admit none.
+    #[test]
+    fn evaluate_if_asks_only_before_a_traversal() {
+        let brdf = material(0.5, 1e-12);
+        let mut scratch = QueryScratch::new();
+        let far = (
+            DVec3::new(0.9, 0.0, 0.44).normalize(),
+            DVec3::new(0.9, 0.1, 0.42).normalize(),
+        );
+        let below = (
+            DVec3::new(0.3, 0.0, 0.95).normalize(),
+            DVec3::new(0.1, 0.0, -1.0),
+        );
+        let (mut asked, mut not_asked) = (0, 0);
+        for i in 0..20 {
+            let fp = footprint(i);
+            for (wi, wo) in directions().into_iter().chain([far, below]) {
+                let bxdf = brdf.at(&fp, &mut scratch);
+                let expected = bxdf.evaluate(wi, wo);
+                let traverses = expected.negligible.is_none() && expected.nodes_visited > 0;
+                let mut called = false;
+                let visible = bxdf.evaluate_if(wi, wo, || {
+                    called = true;
+                    true
+                });
+                assert_eq!(visible, Some(expected), "footprint {i}, {wi} {wo}");
+                assert_eq!(called, traverses, "footprint {i}, {wi} {wo}");
+                let hidden = bxdf.evaluate_if(wi, wo, || false);
+                assert_eq!(hidden, (!traverses).then_some(expected));
+                if traverses {
+                    asked += 1;
+                } else {
+                    not_asked += 1;
+                }
+            }
+        }
+        assert!(
+            asked >= 20 && not_asked >= 40,
+            "{asked} asked, {not_asked} not"
+        );
     }
 
     #[test]

@@ -567,22 +567,14 @@ pub fn radiance(
                         };
                         !scene.occluded(&shadow, t_max)
                     };
-                    // A glint query costs microseconds, a shadow ray a fraction of one: with a
-                    // footprint the ray goes first; otherwise f goes first, and a zero f saves
-                    // the ray. Either order gives the same contribution.
-                    let (f, visible) = if ctx.footprint.is_some() {
-                        let visible = unoccluded(&mut state.rays);
-                        let f = if visible {
-                            material.eval(wi, wo, &mut ctx)
-                        } else {
-                            DVec3::ZERO
-                        };
-                        (f, visible)
-                    } else {
-                        let f = material.eval(wi, wo, &mut ctx);
-                        (f, f != DVec3::ZERO && unoccluded(&mut state.rays))
-                    };
-                    if visible && f != DVec3::ZERO {
+                    // The shadow ray is traced only if f needs it: for a glint query, after
+                    // the negligible test and before the traversal. Any order gives the same
+                    // contribution.
+                    let rays = &mut state.rays;
+                    let f = material
+                        .eval_if_visible(wi, wo, &mut ctx, || unoccluded(rays))
+                        .unwrap_or(DVec3::ZERO);
+                    if f != DVec3::ZERO {
                         let pdf_light = sample.pdf * light_pick;
                         let weight = if sample.is_delta || !use_brdf_hits {
                             1.0

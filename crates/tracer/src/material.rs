@@ -286,6 +286,37 @@ impl GlintMaterial {
         result.f_hat
     }
 
+    /// [`Self::eval`] where `visible()` holds, calling it only if f needs it: with a footprint,
+    /// after the negligible-query test and before the tree traversal (a skipped query answers
+    /// 0 without it); without one, where the smooth f is not 0. `None` when `visible()` said
+    /// no (nothing counted).
+    fn eval_if_visible(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        ctx: &mut ShadingContext<'_>,
+        visible: impl FnOnce() -> bool,
+    ) -> Option<DVec3> {
+        let s = self.uv_scale;
+        let footprint = ctx
+            .footprint
+            .and_then(|(dx, dy)| Footprint::new(ctx.uv * s, dx * s, dy * s).ok());
+        let Some(footprint) = footprint else {
+            let f = self.brdf.smooth().eval(wi, wo);
+            return if f == DVec3::ZERO {
+                Some(f)
+            } else {
+                visible().then_some(f)
+            };
+        };
+        let result = self
+            .brdf
+            .at(&footprint, ctx.scratch)
+            .evaluate_if(wi, wo, visible)?;
+        ctx.counters.record(&result);
+        Some(result.f_hat)
+    }
+
     /// f̂ for the cone of half-angle `half_angle` around `axis` (local) with the context's
     /// footprint (counting the query): [`glint_brdf::GlintBxdf::evaluate_in_cone`]. Zero
     /// without a valid footprint (light cones apply only where there is one).
@@ -427,6 +458,37 @@ impl Material {
             Self::Glint(glint) => glint.eval(wi, wo, ctx),
             Self::Mix(parts) => parts.iter().map(|(w, m)| *w * m.eval(wi, wo, ctx)).sum(),
             Self::Mirror(_) => DVec3::ZERO,
+        }
+    }
+
+    /// f(wi, wo) toward a light where `visible()` (a shadow ray) holds, calling it only if f
+    /// needs it; `None` when it said no. A glint material with a footprint asks after its
+    /// negligible-query test and before its tree traversal (microseconds, against a fraction
+    /// of one for the ray), so a query skipped as negligible costs no ray; a mix with glints
+    /// asks first; other materials ask where f is not 0.
+    pub fn eval_if_visible(
+        &self,
+        wi: DVec3,
+        wo: DVec3,
+        ctx: &mut ShadingContext<'_>,
+        visible: impl FnOnce() -> bool,
+    ) -> Option<DVec3> {
+        if !(above(wi) && above(wo)) {
+            return Some(DVec3::ZERO);
+        }
+        match self {
+            Self::Glint(glint) => glint.eval_if_visible(wi, wo, ctx, visible),
+            Self::Mix(_) if ctx.footprint.is_some() && self.has_glints() => {
+                visible().then(|| self.eval(wi, wo, ctx))
+            }
+            _ => {
+                let f = self.eval(wi, wo, ctx);
+                if f == DVec3::ZERO {
+                    Some(f)
+                } else {
+                    visible().then_some(f)
+                }
+            }
         }
     }
 
