@@ -252,6 +252,16 @@ pub struct MaterialSample {
     pub pdf: f64,
 }
 
+/// `f` where it is 0, or where `visible()` (asked only for a nonzero `f`) holds; `None` when
+/// it said no.
+fn nonzero_where_visible(f: DVec3, visible: impl FnOnce() -> bool) -> Option<DVec3> {
+    if f == DVec3::ZERO {
+        Some(f)
+    } else {
+        visible().then_some(f)
+    }
+}
+
 fn above(w: DVec3) -> bool {
     w.is_finite() && w.z > 0.0
 }
@@ -302,12 +312,7 @@ impl GlintMaterial {
             .footprint
             .and_then(|(dx, dy)| Footprint::new(ctx.uv * s, dx * s, dy * s).ok());
         let Some(footprint) = footprint else {
-            let f = self.brdf.smooth().eval(wi, wo);
-            return if f == DVec3::ZERO {
-                Some(f)
-            } else {
-                visible().then_some(f)
-            };
+            return nonzero_where_visible(self.brdf.smooth().eval(wi, wo), visible);
         };
         let result = self
             .brdf
@@ -481,14 +486,7 @@ impl Material {
             Self::Mix(_) if ctx.footprint.is_some() && self.has_glints() => {
                 visible().then(|| self.eval(wi, wo, ctx))
             }
-            _ => {
-                let f = self.eval(wi, wo, ctx);
-                if f == DVec3::ZERO {
-                    Some(f)
-                } else {
-                    visible().then_some(f)
-                }
-            }
+            _ => nonzero_where_visible(self.eval(wi, wo, ctx), visible),
         }
     }
 
