@@ -588,6 +588,47 @@ power = 100
         assert!(lit_queries > samples + samples / 8, "{lit_queries} queries");
     }
 
+    /// A light sample at a dark point of a light (here a light that emits nothing) costs no
+    /// shadow ray and no glint query: its contribution is 0 whatever they would answer.
+    #[test]
+    fn dark_light_samples_cost_no_query() {
+        let s = scene(
+            r#"
+[render]
+resolution = [16, 12]
+spp = 4
+integrator = "direct"
+[camera]
+position = [0, 1, 0]
+look_at = [0, 0, -1]
+fov = 40
+[materials.glitter]
+type = "glint"
+alpha = 0.3
+particles = 1e6
+gamma = 5
+negligible_count = 0
+[[shapes]]
+type = "rectangle"
+center = [0, 0, 0]
+u = [40, 0, 0]
+v = [0, 0, -40]
+material = "glitter"
+[[lights]]
+type = "rectangle"
+center = [0, 2, -3]
+u = [2, 0, 0]
+v = [0, 0, 2]
+radiance = 0
+"#,
+        );
+        let output = render(&s, &s.settings, 0.0, &|_, _| {}).unwrap();
+        assert_eq!(output.statistics.glint.queries, 0);
+        // Camera rays and BRDF-sampled rays only.
+        assert!(output.statistics.rays <= 2 * 16 * 12 * 4);
+        assert_eq!(mean(&output.image), DVec3::ZERO);
+    }
+
     /// The film takes every sample's radiance explicitly: non-finite ones are discarded and
     /// counted, those above the cap clamped to it and counted, so that a pixel is always
     /// finite and at most MAX_SAMPLE_RADIANCE.

@@ -551,7 +551,8 @@ pub fn radiance(
             if let Some(sample) = light.sample(surface.point, u_light) {
                 let wo = frame.to_local(sample.direction);
                 let same_side = sample.direction.dot(geometric_normal) > 0.0;
-                if same_side && wo.z > 0.0 {
+                // A dark point of a textured light adds nothing: no ray, no f.
+                if same_side && wo.z > 0.0 && sample.radiance != DVec3::ZERO {
                     let unoccluded = |rays: &mut u64| {
                         let origin =
                             offset_origin(surface.point, geometric_normal, sample.direction);
