@@ -44,7 +44,7 @@ mod split;
 
 pub use descent::LEAF_CELL_ARC;
 pub use leaf::LEAF_PARTICLES;
-pub(super) use leaf::{LeafParticle, LeafPositions};
+pub(super) use leaf::{LeafDraws, LeafParticle};
 pub(super) use split::{PairCounts, quarter_min};
 
 /// Stream purposes: separate streams of one node.

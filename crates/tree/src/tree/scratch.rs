@@ -10,7 +10,7 @@ use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic};
 
 use super::CountTree;
-use super::particles::{LeafParticle, LeafPositions, Node, PairCounts, box_size_at};
+use super::particles::{LeafDraws, LeafParticle, Node, PairCounts, box_size_at};
 use super::query::QueuedNode;
 use super::spine::Spines;
 use crate::footprint::{BoxOverlap, Footprint};
@@ -53,9 +53,10 @@ impl QueryScratch {
 /// the rest of the descent step. And it keeps the split counts of the nodes below the tree's
 /// cached top levels (with the pair divisions drawn): a pixel's samples and its neighbours'
 /// descend through the same nodes, whose binomial draws cost more than the rest of a split.
-/// And it keeps the leaves those queries meet, with their particles' sub-box codes and the
-/// positions drawn so far: each costs a TEA draw, and most leaves a query meets hold no
-/// particle of its footprint.
+/// And it keeps the leaves those queries meet, with their particles' sub-box codes, the
+/// positions drawn so far (each costs a TEA draw, and most leaves a query meets hold no
+/// particle of its footprint) and the normals descended so far; and coloured nodes' drawn
+/// areas (gamma draws per split on the way down).
 #[derive(Debug, Default)]
 pub(super) struct QueryMemo {
     classifications: Vec<ClassificationEntry>,
@@ -68,13 +69,13 @@ pub(super) struct QueryMemo {
     leaves: Vec<LeafEntry>,
 }
 
-/// A leaf (its identity) of a tree (the tree's identity) with its particles' sub-box codes
-/// and the positions drawn so far.
+/// A leaf (its identity) of a tree (the tree's identity) with what queries have drawn of its
+/// particles (sub-box codes, positions, normals).
 #[derive(Clone, Copy, Debug)]
 struct LeafEntry {
     tree: u64,
     id: NodeId,
-    positions: Option<LeafPositions>,
+    draws: Option<LeafDraws>,
 }
 
 /// A node's split counts (its identity) in a tree (the tree's identity), with the pair
@@ -199,7 +200,7 @@ impl QueryMemo {
     const NO_LEAF: LeafEntry = LeafEntry {
         tree: 0,
         id: NodeId(0),
-        positions: None,
+        draws: None,
     };
 
     /// Forgets the previous query's answers (allocates the tables on first use).
@@ -356,29 +357,29 @@ impl QueryMemo {
         }
     }
 
-    /// The sub-box codes and drawn positions of the particles of `leaf` in `tree`, as earlier
-    /// queries left them, or from `draw` (the codes, no position) when they are not
-    /// remembered: a pixel's samples and its neighbours' meet the same leaves. The caller
-    /// adds the positions it draws.
+    /// What queries have drawn of the particles of `leaf` in `tree` (sub-box codes, positions,
+    /// normals), marked as met again, or from `draw` (the codes only) when it is not
+    /// remembered: a pixel's samples and its neighbours' meet the same leaves. The caller adds
+    /// what it draws.
     #[inline]
-    pub(super) fn leaf_positions(
+    pub(super) fn leaf_draws(
         &mut self,
         tree: &CountTree,
         leaf: &Node,
-        draw: impl FnOnce() -> LeafPositions,
-    ) -> &mut LeafPositions {
+        draw: impl FnOnce() -> LeafDraws,
+    ) -> &mut LeafDraws {
         let entry = &mut self.leaves[node_slot(tree.id, leaf.id, LEAVES_MEMO_BITS)];
         if !(entry.tree == tree.id && entry.id == leaf.id) {
             *entry = LeafEntry {
                 tree: tree.id,
                 id: leaf.id,
-                positions: None,
+                draws: None,
             };
         }
-        if let Some(positions) = &mut entry.positions {
-            positions.met_again = true;
+        if let Some(draws) = &mut entry.draws {
+            draws.met_again = true;
         }
-        entry.positions.get_or_insert_with(draw)
+        entry.draws.get_or_insert_with(draw)
     }
 
     /// What queries have drawn of the particles of `leaf` in `tree`, if it is remembered.
@@ -387,10 +388,10 @@ impl QueryMemo {
         &mut self,
         tree: &CountTree,
         leaf: &Node,
-    ) -> Option<&mut LeafPositions> {
+    ) -> Option<&mut LeafDraws> {
         let entry = &mut self.leaves[node_slot(tree.id, leaf.id, LEAVES_MEMO_BITS)];
         if entry.tree == tree.id && entry.id == leaf.id {
-            entry.positions.as_mut()
+            entry.draws.as_mut()
         } else {
             None
         }

@@ -52,8 +52,8 @@ impl CountTree {
     /// as soon as its cell is inside the conic or disjoint from it: the classification is
     /// never wrong there, so the answer is that of the normals the full descent would reach.
     ///
-    /// The normals the descents reach (those that go down to their final cells) are written
-    /// to `reached`.
+    /// The descents that go down to their final cells leave their normals in the particles'
+    /// `descended` and their bits in `reached`.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn normals_in_conic(
         &self,
@@ -63,7 +63,7 @@ impl CountTree {
         memo: &mut QueryMemo,
         (stream, particles): (&LeafStream, &mut [LeafParticle]),
         members: u64,
-        reached: &mut ReachedNormals,
+        reached: &mut u64,
     ) -> u64 {
         match classification {
             Classification::Disjoint => return 0,
@@ -74,10 +74,10 @@ impl CountTree {
             let mut inside = 0;
             for k in self::members(members) {
                 let normal = particles[k].normal.point_in(triangle, stream);
-                reached.normals[k] = normal;
+                particles[k].descended = Some(normal);
                 inside |= u64::from(conic.contains(normal)) << k;
             }
-            reached.bits |= members;
+            *reached |= members;
             return inside;
         }
         self.with_split(cell, memo, |memo, children, probabilities| {
@@ -106,7 +106,8 @@ impl CountTree {
 
     /// Which of the leaf particles `particles` (up to 64, each descending the law above with
     /// its own stream, all now in `cell`, which the conic classifies as `classification`) have
-    /// normals in the conic, as [`Self::normals_in_conic`] answers, and the normals reached.
+    /// normals in the conic, as [`Self::normals_in_conic`] answers, and which of them this call
+    /// descended to their normals (left in their `descended`).
     /// A particle whose normal an earlier query reached ([`LeafParticle::descended`]) is
     /// tested directly. The others descend: all the way when `in_full`, so that every normal
     /// is reached, else until the conic decides them.
@@ -117,9 +118,9 @@ impl CountTree {
         memo: &mut QueryMemo,
         (stream, particles): (&LeafStream, &mut [LeafParticle]),
         in_full: bool,
-    ) -> (u64, ReachedNormals) {
+    ) -> (u64, u64) {
         let everyone = u64::MAX >> (64 - particles.len());
-        let mut reached = ReachedNormals::NONE;
+        let mut reached = 0;
         let inside = match classification {
             Classification::Disjoint => 0,
             Classification::TriangleInsideConic => everyone,
@@ -137,7 +138,8 @@ impl CountTree {
                 } else if in_full {
                     self.descend_normals(cell, memo, (stream, particles), to_descend, &mut reached);
                     members(to_descend).fold(inside, |inside, k| {
-                        inside | u64::from(conic.contains(reached.normals[k])) << k
+                        let normal = particles[k].descended.unwrap_or(DVec3::ZERO);
+                        inside | u64::from(conic.contains(normal)) << k
                     })
                 } else {
                     inside
@@ -157,7 +159,8 @@ impl CountTree {
     }
 
     /// The normals of the leaf particles `members` (bits indexing `particles`, each descending
-    /// the law above with its own stream, all now in `cell`), written to `reached`: each
+    /// the law above with its own stream, all now in `cell`), left in their `descended` (their
+    /// bits set in `reached`): each
     /// descent goes all the way to its final cell and the normal's point in it. The particles
     /// descend together as in [`Self::normals_in_conic`], with the same draws, so a normal is
     /// in a conic exactly when that descent answers that it is (it stops only in a cell the
@@ -168,13 +171,13 @@ impl CountTree {
         memo: &mut QueryMemo,
         (stream, particles): (&LeafStream, &mut [LeafParticle]),
         members: u64,
-        reached: &mut ReachedNormals,
+        reached: &mut u64,
     ) {
         if let Some(triangle) = self.final_cell(cell) {
             for k in self::members(members) {
-                reached.normals[k] = particles[k].normal.point_in(triangle, stream);
+                particles[k].descended = Some(particles[k].normal.point_in(triangle, stream));
             }
-            reached.bits |= members;
+            *reached |= members;
             return;
         }
         self.with_split(cell, memo, |memo, children, probabilities| {
@@ -207,20 +210,6 @@ impl CountTree {
             }
         }
     }
-}
-
-/// The normals that descents of up to 64 particles reached: bit k of `bits` is set when
-/// `normals[k]` holds particle k's.
-pub(super) struct ReachedNormals {
-    pub(super) bits: u64,
-    pub(super) normals: [DVec3; 64],
-}
-
-impl ReachedNormals {
-    pub(super) const NONE: Self = Self {
-        bits: 0,
-        normals: [DVec3::ZERO; 64],
-    };
 }
 
 /// A leaf particle's normal on its way down the directional hierarchy, by inversion: one
@@ -454,7 +443,7 @@ mod tests {
             let mut in_full = particles.clone();
             let everyone = u64::MAX >> (64 - count);
             memo.begin_query();
-            let mut reached = ReachedNormals::NONE;
+            let mut reached = 0;
             let grouped = tree.normals_in_conic(
                 &cell,
                 classification,
@@ -466,7 +455,7 @@ mod tests {
             );
             // The full descents reach normals in the conic exactly where the descents that
             // stop early answer so, and the normals those reached.
-            let mut full = ReachedNormals::NONE;
+            let mut full = 0;
             tree.descend_normals(
                 &cell,
                 &mut memo,
@@ -474,21 +463,21 @@ mod tests {
                 everyone,
                 &mut full,
             );
-            assert_eq!(full.bits, everyone);
+            assert_eq!(full, everyone);
             for k in 0..count as usize {
+                let normal = in_full[k].descended.expect("descended in full");
                 assert_eq!(
-                    conic.contains(full.normals[k]),
+                    conic.contains(normal),
                     grouped >> k & 1 == 1,
                     "trial {trial} particle {k}: the full descent"
                 );
-                if reached.bits >> k & 1 == 1 {
-                    assert_eq!(
-                        reached.normals[k], full.normals[k],
-                        "trial {trial} particle {k}"
-                    );
+                let early = particles[k].descended;
+                assert_eq!(early.is_some(), reached >> k & 1 == 1, "trial {trial}");
+                if let Some(early) = early {
+                    assert_eq!(early, normal, "trial {trial} particle {k}");
                 }
             }
-            reached_final += reached.bits.count_ones();
+            reached_final += reached.count_ones();
             for (k, normal) in alone.iter_mut().enumerate() {
                 let expected =
                     normal_in_conic_alone(&tree, &cell, classification, &conic, &stream, normal);

@@ -55,7 +55,8 @@ const DRAW_AREAS: u32 = 2;
 pub(in crate::tree) struct LeafParticle {
     pub(super) normal: NormalDescent,
     pub(super) multiplicity: u64,
-    /// Its normal, where the leaf is remembered and a query has descended it.
+    /// Its normal, once known: remembered with its leaf from an earlier query, or reached by
+    /// this query's descent.
     pub(super) descended: Option<DVec3>,
 }
 
@@ -69,7 +70,7 @@ pub(super) struct LeafStream {
 /// order, as the leaf's stream draws them: sixteen per draw), the positions drawn so far, and
 /// the normals descended so far: what queries have drawn of a leaf's particles.
 #[derive(Clone, Copy, Debug)]
-pub(in crate::tree) struct LeafPositions {
+pub(in crate::tree) struct LeafDraws {
     codes: [u64; 2],
     /// Bit i is set when `positions[i]` holds particle i's position.
     drawn: u32,
@@ -78,11 +79,11 @@ pub(in crate::tree) struct LeafPositions {
     /// Whether a query has met the leaf since these were first drawn: its particles' normals
     /// are then worth descending in full (see [`CountTree::count_leaf`]).
     pub(in crate::tree) met_again: bool,
-    positions: [DVec2; LeafPositions::CAPACITY],
-    normals: [DVec3; LeafPositions::CAPACITY],
+    positions: [DVec2; LeafDraws::CAPACITY],
+    normals: [DVec3; LeafDraws::CAPACITY],
 }
 
-impl LeafPositions {
+impl LeafDraws {
     /// The particles a set of positions holds: [`LEAF_PARTICLES`], a whole leaf.
     pub(in crate::tree) const CAPACITY: usize = LEAF_PARTICLES as usize;
 
@@ -180,21 +181,22 @@ impl CountTree {
                 let (column, row) = sub_box_column_and_row(code);
                 mask | (columns >> column & rows >> row & 1) << code
             });
-        // A leaf of at most `LeafPositions::CAPACITY` particles keeps its sub-box codes, the
+        // A leaf of at most `LeafDraws::CAPACITY` particles keeps its sub-box codes, the
         // positions drawn so far and the normals reached in the memo: a pixel's samples, and
         // its neighbours', meet the same leaves. Larger leaves (only at the depth guard) draw
         // them afresh.
         let mut sub_boxes = self.stream(node.id, PURPOSE_LEAF_SUB_BOXES);
         let mut unremembered;
+        let remembered = node.count <= LeafDraws::CAPACITY as u64;
         let mut met_again = false;
-        for first in (0..node.count).step_by(LeafPositions::CAPACITY) {
-            let particles = (node.count - first).min(LeafPositions::CAPACITY as u64) as usize;
-            let leaf = if node.count <= LeafPositions::CAPACITY as u64 {
-                memo.leaf_positions(self, node, || {
-                    LeafPositions::with_codes(&mut sub_boxes, particles)
+        for first in (0..node.count).step_by(LeafDraws::CAPACITY) {
+            let particles = (node.count - first).min(LeafDraws::CAPACITY as u64) as usize;
+            let leaf = if remembered {
+                memo.leaf_draws(self, node, || {
+                    LeafDraws::with_codes(&mut sub_boxes, particles)
                 })
             } else {
-                unremembered = LeafPositions::with_codes(&mut sub_boxes, particles);
+                unremembered = LeafDraws::with_codes(&mut sub_boxes, particles);
                 &mut unremembered
             };
             met_again = leaf.met_again;
@@ -237,7 +239,6 @@ impl CountTree {
                 });
             }
         }
-        let remembered = node.count <= LeafPositions::CAPACITY as u64;
         // The first uniform number of each descent still to take, four particles per 4-lane
         // TEA call.
         let mut descending = in_footprint.iter_mut().filter(|p| p.descended.is_none());
@@ -279,12 +280,12 @@ impl CountTree {
                 descend_in_full,
             );
             if remembered
-                && reached.bits != 0
+                && reached != 0
                 && let Some(leaf) = memo.remembered_leaf(self, node)
             {
-                for k in members(reached.bits) {
+                for k in members(reached) {
                     let i = (group[k].normal.purpose - PURPOSE_LEAF) as usize;
-                    leaf.remember_normal(i, reached.normals[k]);
+                    leaf.remember_normal(i, group[k].descended.unwrap_or(DVec3::ZERO));
                 }
             }
             for particle in members(inside).map(|k| &group[k]) {
