@@ -316,8 +316,7 @@ impl DiscreteBrdf {
         footprint: &Footprint,
         scratch: &mut QueryScratch,
     ) -> Option<ConicQuery> {
-        self.query_if(wi, wo, footprint, scratch, || true)
-            .unwrap_or(None)
+        self.query_if(wi, wo, footprint, scratch, || true).flatten()
     }
 
     /// [`Self::query`] where `traverse()` holds, asking it only before a traversal: a query

@@ -502,20 +502,16 @@ power = 20
         assert!(dense.nodes_per_query() > sparse.nodes_per_query() + 4.0);
     }
 
-    /// A BRDF sample's f (a glint query) is computed only where the path can still gain from
-    /// it. A glint floor under the sun alone sends every BRDF-sampled ray into a black sky, so
-    /// a path of up to five bounces makes exactly the queries and the image of direct
-    /// lighting: one query per camera sample, for the sun, not two. A mirror the sampled rays
-    /// meet, which sends them on into the sky, changes neither; one that sends them on to a
-    /// light does.
-    #[test]
-    fn glint_queries_skip_brdf_samples_that_gain_nothing() {
-        let floor = r#"
+    /// A camera looking down at a glint floor that fills its view (α = 0.3, N = 10⁶, γ = 5°,
+    /// every query traversed), 16×12 at 4 spp, with the `[render]` lines `render` and then
+    /// `rest` (lights, more materials and shapes).
+    fn glint_floor_scene(render: &str, rest: &str) -> String {
+        format!(
+            r#"
 [render]
 resolution = [16, 12]
 spp = 4
-integrator = "path"
-max_depth = 5
+{render}
 [camera]
 position = [0, 1, 0]
 look_at = [0, 0, -1]
@@ -526,20 +522,37 @@ alpha = 0.3
 particles = 1e6
 gamma = 5
 negligible_count = 0
-[materials.mirror]
-type = "mirror"
-colour = 0.9
 [[shapes]]
 type = "rectangle"
 center = [0, 0, 0]
 u = [40, 0, 0]
 v = [0, 0, -40]
 material = "glitter"
+{rest}"#
+        )
+    }
+
+    /// A BRDF sample's f (a glint query) is computed only where the path can still gain from
+    /// it. A glint floor under the sun alone sends every BRDF-sampled ray into a black sky, so
+    /// a path of up to five bounces makes exactly the queries and the image of direct
+    /// lighting: one query per camera sample, for the sun, not two. A mirror the sampled rays
+    /// meet, which sends them on into the sky, changes neither; one that sends them on to a
+    /// light does.
+    #[test]
+    fn glint_queries_skip_brdf_samples_that_gain_nothing() {
+        let floor = glint_floor_scene(
+            "integrator = \"path\"\nmax_depth = 5",
+            r#"
+[materials.mirror]
+type = "mirror"
+colour = 0.9
 [[lights]]
 type = "directional"
 direction = [0, 4, -1]
 irradiance = 1
-"#;
+"#,
+        );
+        let floor = floor.as_str();
         // Out of the camera's view (the floor fills it) and below the sun's shadow rays, it
         // faces the camera: the floor's sampled rays that meet it go back up into the sky.
         let mirror = r#"
@@ -592,28 +605,9 @@ power = 100
     /// shadow ray and no glint query: its contribution is 0 whatever they would answer.
     #[test]
     fn dark_light_samples_cost_no_query() {
-        let s = scene(
+        let s = scene(&glint_floor_scene(
+            "integrator = \"direct\"",
             r#"
-[render]
-resolution = [16, 12]
-spp = 4
-integrator = "direct"
-[camera]
-position = [0, 1, 0]
-look_at = [0, 0, -1]
-fov = 40
-[materials.glitter]
-type = "glint"
-alpha = 0.3
-particles = 1e6
-gamma = 5
-negligible_count = 0
-[[shapes]]
-type = "rectangle"
-center = [0, 0, 0]
-u = [40, 0, 0]
-v = [0, 0, -40]
-material = "glitter"
 [[lights]]
 type = "rectangle"
 center = [0, 2, -3]
@@ -621,7 +615,7 @@ u = [2, 0, 0]
 v = [0, 0, 2]
 radiance = 0
 "#,
-        );
+        ));
         let output = render(&s, &s.settings, 0.0, &|_, _| {}).unwrap();
         assert_eq!(output.statistics.glint.queries, 0);
         // Camera rays and BRDF-sampled rays only.
