@@ -358,28 +358,28 @@ impl QueryMemo {
     }
 
     /// What queries have drawn of the particles of `leaf` in `tree` (sub-box codes, positions,
-    /// normals), marked as met again, or from `draw` (the codes only) when it is not
-    /// remembered: a pixel's samples and its neighbours' meet the same leaves. The caller adds
-    /// what it draws.
+    /// normals), marked as met again, or, when it is not remembered, an entry that `start`
+    /// begins afresh (it takes the codes only): a pixel's samples and its neighbours' meet the
+    /// same leaves. The caller adds what it draws.
     #[inline]
     pub(super) fn leaf_draws(
         &mut self,
         tree: &CountTree,
         leaf: &Node,
-        draw: impl FnOnce() -> LeafDraws,
+        start: impl FnOnce(&mut LeafDraws),
     ) -> &mut LeafDraws {
         let entry = &mut self.leaves[node_slot(tree.id, leaf.id, LEAVES_MEMO_BITS)];
-        if !(entry.tree == tree.id && entry.id == leaf.id) {
-            *entry = LeafEntry {
-                tree: tree.id,
-                id: leaf.id,
-                draws: None,
-            };
-        }
-        if let Some(draws) = &mut entry.draws {
+        let met_again = entry.tree == tree.id && entry.id == leaf.id && entry.draws.is_some();
+        entry.tree = tree.id;
+        entry.id = leaf.id;
+        // The slot's earlier leaf is overwritten in place (its 1.3 KB are not cleared).
+        let draws = entry.draws.get_or_insert(LeafDraws::EMPTY);
+        if met_again {
             draws.met_again = true;
+        } else {
+            start(draws);
         }
-        entry.draws.get_or_insert_with(draw)
+        draws
     }
 
     /// What queries have drawn of the particles of `leaf` in `tree`, if it is remembered.
