@@ -70,6 +70,14 @@ impl CountTree {
             Classification::TriangleInsideConic => return members,
             Classification::ConicInsideTriangle | Classification::Partial => {}
         }
+        if members.is_power_of_two() {
+            // Most groups are one particle a few levels below a leaf: no split of the group.
+            let k = members.trailing_zeros() as usize;
+            let (inside, reached_final) =
+                self.normal_in_conic(cell, conic, memo, stream, &mut particles[k]);
+            *reached |= u64::from(reached_final) << k;
+            return u64::from(inside) << k;
+        }
         if let Some(triangle) = self.final_cell(cell) {
             let mut inside = 0;
             for k in self::members(members) {
@@ -102,6 +110,57 @@ impl CountTree {
             }
             inside
         })
+    }
+
+    /// [`Self::normals_in_conic`] for one particle in `cell`, which the conic neither holds
+    /// nor misses: whether its normal is in the conic, and whether its descent reached its
+    /// normal (then left in its `descended`). The same steps and classifications, one level
+    /// at a time.
+    fn normal_in_conic(
+        &self,
+        cell: &DirectionalCell,
+        conic: &SphericalConic,
+        memo: &mut QueryMemo,
+        stream: &LeafStream,
+        particle: &mut LeafParticle,
+    ) -> (bool, bool) {
+        let mut cell = *cell;
+        loop {
+            if let Some(triangle) = self.final_cell(&cell) {
+                let normal = particle.normal.point_in(triangle, stream);
+                particle.descended = Some(normal);
+                return (conic.contains(normal), true);
+            }
+            cell = self.with_split(&cell, memo, |_, children, probabilities| {
+                children[particle.normal.step(&probabilities, stream)]
+            });
+            match memo.classify(&cell, conic) {
+                Classification::Disjoint => return (false, false),
+                Classification::TriangleInsideConic => return (true, false),
+                Classification::ConicInsideTriangle | Classification::Partial => {}
+            }
+        }
+    }
+
+    /// [`Self::descend_normals`] for one particle in `cell`: its normal, left in its
+    /// `descended`.
+    fn descend_normal(
+        &self,
+        cell: &DirectionalCell,
+        memo: &mut QueryMemo,
+        stream: &LeafStream,
+        particle: &mut LeafParticle,
+    ) {
+        let mut cell = *cell;
+        loop {
+            if let Some(triangle) = self.final_cell(&cell) {
+                particle.descended = Some(particle.normal.point_in(triangle, stream));
+                return;
+            }
+            cell = self.with_split(&cell, memo, |_, children, probabilities| {
+                children[particle.normal.step(&probabilities, stream)]
+            });
+        }
     }
 
     /// Which of the leaf particles `particles` (up to 64, each descending the law above with
@@ -173,6 +232,12 @@ impl CountTree {
         members: u64,
         reached: &mut u64,
     ) {
+        if members.is_power_of_two() {
+            let k = members.trailing_zeros() as usize;
+            self.descend_normal(cell, memo, stream, &mut particles[k]);
+            *reached |= members;
+            return;
+        }
         if let Some(triangle) = self.final_cell(cell) {
             for k in self::members(members) {
                 particles[k].descended = Some(particles[k].normal.point_in(triangle, stream));
