@@ -326,6 +326,7 @@ impl NormalDescent {
 
     /// The child (0–3) the descent takes under split `probabilities` (summing to 1 up to
     /// rounding; the last child takes any remainder), after which `self` is the descent in it.
+    #[inline]
     fn step(&mut self, probabilities: &[f64; 4], stream: &LeafStream) -> usize {
         let [p0, p1, p2, p3] = *probabilities;
         let u = self.uniform;
