@@ -14,8 +14,11 @@ use glint_tracer::{RenderSettings, RenderStatistics, Scene};
 const TABLE_BEGIN: &str = "<!-- cargo xtask bench: frame costs -->";
 const TABLE_END: &str = "<!-- end of frame costs -->";
 
-/// Glint/smooth render pairs per scene and thread count (the median ratio is reported).
-const PAIRS: usize = 3;
+/// Glint/smooth render pairs per scene and thread count (the medians are reported). Renders on
+/// the shared development machine move by 5–10% from one run to the next, which the time added
+/// per traversed query, a difference, magnifies; five pairs keep one disturbed pair from
+/// setting it.
+const PAIRS: usize = 5;
 
 /// The parts of a glint render's time, in the order a sample's call stack is matched against
 /// them: a sample belongs to the first part that names any frame of its stack (so the tree's
@@ -67,9 +70,24 @@ const RENDER_FRAME: &str = "glint_tracer::film::render";
 struct SceneCost {
     name: String,
     settings: RenderSettings,
-    /// Per thread count: (threads, median glint seconds, median smooth seconds, median ratio,
-    /// the glint render's statistics).
-    runs: Vec<(usize, f64, f64, f64, RenderStatistics)>,
+    /// One per thread count.
+    runs: Vec<PairedRuns>,
+}
+
+/// The glint/smooth pairs of one scene on some threads: the medians over the pairs.
+struct PairedRuns {
+    threads: usize,
+    /// Glint render seconds.
+    glint: f64,
+    /// Smooth render seconds.
+    smooth: f64,
+    /// Of the pairs' glint / smooth ratios.
+    ratio: f64,
+    /// Of the pairs' glint − smooth differences (seconds): each pair's renders ran back to
+    /// back, under the same load.
+    added: f64,
+    /// The glint render's statistics (the same in every pair).
+    statistics: RenderStatistics,
 }
 
 fn median(values: &mut [f64]) -> f64 {
@@ -105,7 +123,8 @@ fn measure(path: &Path, quick: bool) -> anyhow::Result<SceneCost> {
                 .install(|| glint_tracer::render(scene, &settings, 0.0, &|_, _| {}))?
                 .statistics)
         };
-        let (mut glint_times, mut smooth_times, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut glint_times, mut smooth_times) = (Vec::new(), Vec::new());
+        let (mut ratios, mut differences) = (Vec::new(), Vec::new());
         let mut statistics = None;
         for _ in 0..if quick { 1 } else { PAIRS } {
             let g = render(&glint)?;
@@ -113,15 +132,22 @@ fn measure(path: &Path, quick: bool) -> anyhow::Result<SceneCost> {
             glint_times.push(g.seconds);
             smooth_times.push(s.seconds);
             ratios.push(g.seconds / s.seconds);
+            differences.push(g.seconds - s.seconds);
             statistics = Some(g);
         }
-        let (g, s, r) = (
-            median(&mut glint_times),
-            median(&mut smooth_times),
-            median(&mut ratios),
+        let run = PairedRuns {
+            threads,
+            glint: median(&mut glint_times),
+            smooth: median(&mut smooth_times),
+            ratio: median(&mut ratios),
+            added: median(&mut differences),
+            statistics: statistics.context("no render")?,
+        };
+        println!(
+            "{name}, {threads} thread(s): glint {:.2} s, smooth {:.2} s, {:.2}×",
+            run.glint, run.smooth, run.ratio
         );
-        println!("{name}, {threads} thread(s): glint {g:.2} s, smooth {s:.2} s, {r:.2}×");
-        runs.push((threads, g, s, r, statistics.context("no render")?));
+        runs.push(run);
     }
     Ok(SceneCost {
         name,
@@ -240,32 +266,37 @@ fn tables(
 ) -> anyhow::Result<String> {
     let mut table = format!(
         "\nEach scene at its default settings{}; glint and `--smooth` at equal samples, \
-         alternating, {} pair(s) per row: median times and the median of the pairs' ratios. \
-         \"Added per traversed query\" is (glint − smooth time) / traversed queries.\n\n\
+         alternating, {} pair(s) per row: the medians of the times, of the pairs' ratios and \
+         of the pairs' differences. \"Added per traversed query\" is that median difference \
+         (glint − smooth time) / traversed queries.\n\n\
          | scene | resolution, spp | threads | glint | smooth | glint / smooth | traversed queries | skipped as negligible | added per traversed query |\n\
          |---|---|---|---|---|---|---|---|---|\n",
         if quick { " at half resolution" } else { "" },
         if quick { 1 } else { PAIRS }
     );
     for cost in costs {
-        for (threads, glint, smooth, ratio, statistics) in &cost.runs {
-            let traversed = statistics.glint.traversed_queries();
+        for run in &cost.runs {
+            let traversed = run.statistics.glint.traversed_queries();
             let added = if traversed > 0 {
                 format!(
                     "{:.2} µs",
-                    (glint - smooth) * 1e6 / traversed as f64 * *threads as f64
+                    run.added * 1e6 / traversed as f64 * run.threads as f64
                 )
             } else {
                 "—".to_owned()
             };
             writeln!(
                 table,
-                "| {} | {}×{}, {} | {threads} | {glint:.2} s | {smooth:.2} s | {ratio:.2}× | {traversed} | {} | {added} |",
+                "| {} | {}×{}, {} | {} | {:.2} s | {:.2} s | {:.2}× | {traversed} | {} | {added} |",
                 cost.name,
                 cost.settings.width,
                 cost.settings.height,
                 cost.settings.samples_per_pixel,
-                statistics.glint.negligible_queries,
+                run.threads,
+                run.glint,
+                run.smooth,
+                run.ratio,
+                run.statistics.glint.negligible_queries,
             )?;
         }
     }
@@ -277,7 +308,7 @@ fn tables(
              stack; the rest is what glint and smooth renders share: rays, light and smooth \
              BRDFs, the film). Seconds are the share times the median glint time above; \
              \"glint parts\" sums the parts before the rest, to set against the measured \
-             glint − smooth time.\n\n| scene |"
+             glint − smooth time (the median of the pairs' differences above).\n\n| scene |"
         )?;
         for (name, _) in PARTS {
             write!(table, " {name} |")?;
@@ -288,15 +319,20 @@ fn tables(
         }
         table.push('\n');
         for (cost, shares) in costs.iter().zip(profiles) {
-            let (Some(shares), Some((_, glint, smooth, _, _))) = (shares, cost.runs.first()) else {
+            let (Some(shares), Some(run)) = (shares, cost.runs.first()) else {
                 continue;
             };
             write!(table, "| {} |", cost.name)?;
             for share in shares {
-                write!(table, " {:.0}% ({:.2} s) |", share * 100.0, share * glint)?;
+                write!(
+                    table,
+                    " {:.0}% ({:.2} s) |",
+                    share * 100.0,
+                    share * run.glint
+                )?;
             }
             let parts: f64 = shares[..PARTS.len()].iter().sum();
-            writeln!(table, " {:.2} s | {:.2} s |", parts * glint, glint - smooth)?;
+            writeln!(table, " {:.2} s | {:.2} s |", parts * run.glint, run.added)?;
         }
     } else {
         table.push_str("\n(`perf` is not installed: no breakdown of the glint time.)\n");
