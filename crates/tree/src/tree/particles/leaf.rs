@@ -146,12 +146,8 @@ impl LeafDraws {
                 nibbles_with_field_in(codes, 0, columns) & nibbles_with_field_in(codes, 2, rows);
             found |= u64::from(compress_nibble_flags(meeting)) << (16 * word);
         }
-        let first = if particles >= 64 {
-            u64::MAX
-        } else {
-            (1u64 << particles) - 1
-        };
-        (found & first) as u32
+        debug_assert!(particles <= LeafDraws::CAPACITY);
+        (found & ((1u64 << particles) - 1)) as u32
     }
 }
 
