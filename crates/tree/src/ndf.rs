@@ -336,25 +336,31 @@ impl DirectionalSplit {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct DirectionalSplits {
     levels: u32,
-    coarse: Vec<DirectionalSplit>,
-    non_uniform: HashMap<u64, DirectionalSplit, BuildHasherDefault<LabelHasher>>,
+    /// The coarse splits (by depth, then label), then those of the deeper cells with a table
+    /// entry.
+    splits: Vec<DirectionalSplit>,
+    /// The coarse splits' number: those of every cell of depths 0 to `levels` − 1.
+    coarse: usize,
+    /// The index in `splits` of each deeper cell's split, by the cell's label.
+    non_uniform: HashMap<u64, u32, BuildHasherDefault<LabelHasher>>,
 }
 
 impl DirectionalSplits {
     /// The splits of the cells of depths 0 to `levels` − 1 and of the deeper cells with a
     /// table entry (about 450 bytes each).
     pub(crate) fn build(quadrature: &NdfQuadrature, density: &NormalDensity, levels: u32) -> Self {
-        let mut coarse = Vec::new();
+        let mut splits = Vec::new();
         let mut level = vec![DirectionalCell::HEMISPHERE];
         for _ in 0..levels {
             let mut next = Vec::with_capacity(4 * level.len());
             for cell in &level {
                 let split = DirectionalSplit::of(cell, quadrature, density);
                 next.extend_from_slice(&split.children);
-                coarse.push(split);
+                splits.push(split);
             }
             level = next;
         }
+        let coarse = splits.len();
         // A cell has a table entry only if its parent has one (Alg. 2 recurses from there).
         let mut non_uniform = HashMap::default();
         let mut pending = level;
@@ -364,34 +370,49 @@ impl DirectionalSplits {
             }
             let split = DirectionalSplit::of(&cell, quadrature, density);
             pending.extend_from_slice(&split.children);
-            non_uniform.insert(cell.label, split);
+            let index = u32::try_from(splits.len()).expect("fewer than 2³² table entries");
+            non_uniform.insert(cell.label, index);
+            splits.push(split);
         }
         Self {
             levels,
+            splits,
             coarse,
             non_uniform,
         }
     }
 
-    /// The split of `cell`, if it is in the table.
+    /// The index of the split of `cell` ([`Self::at`]), if it is in the table.
     #[inline]
-    pub(crate) fn get(&self, cell: &DirectionalCell) -> Option<&DirectionalSplit> {
+    pub(crate) fn index_of(&self, cell: &DirectionalCell) -> Option<usize> {
         if cell.depth >= self.levels {
             if cell.depth >= DirectionalCell::MAX_LABELLED_DEPTH || self.non_uniform.is_empty() {
                 return None;
             }
-            return self.non_uniform.get(&cell.label);
+            return self.non_uniform.get(&cell.label).map(|&i| i as usize);
         }
         let power = 1u64 << (2 * cell.depth);
         let first_label = (2 * power + 1) / 3;
         let before = (power - 1) / 3;
-        self.coarse
-            .get((before + cell.label - first_label) as usize)
+        let index = (before + cell.label - first_label) as usize;
+        (index < self.coarse).then_some(index)
+    }
+
+    /// The split of `cell`, if it is in the table.
+    #[inline]
+    pub(crate) fn get(&self, cell: &DirectionalCell) -> Option<&DirectionalSplit> {
+        self.index_of(cell).map(|i| &self.splits[i])
+    }
+
+    /// The split at `index` (below [`Self::len`]).
+    #[inline]
+    pub(crate) fn at(&self, index: usize) -> &DirectionalSplit {
+        &self.splits[index]
     }
 
     /// The number of splits held.
     pub(crate) fn len(&self) -> usize {
-        self.coarse.len() + self.non_uniform.len()
+        self.splits.len()
     }
 }
 

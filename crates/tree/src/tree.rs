@@ -30,7 +30,7 @@ mod scratch;
 mod spine;
 
 pub use law::DirectionalLawExcess;
-use particles::Node;
+use particles::{DescentStep, Node};
 pub use particles::{LEAF_CELL_ARC, LEAF_PARTICLES};
 pub use query::QueryResult;
 pub use scratch::QueryScratch;
@@ -180,6 +180,8 @@ pub struct CountTree {
     quadrature: NdfQuadrature,
     density: Arc<NormalDensity>,
     directional_splits: DirectionalSplits,
+    /// `directional_splits` as single leaf particles' descents walk them.
+    descent_steps: Vec<DescentStep>,
     top_levels: TopLevels,
 }
 
@@ -264,8 +266,10 @@ impl CountTree {
             quadrature,
             density,
             directional_splits,
+            descent_steps: Vec::new(),
             top_levels: TopLevels::default(),
         };
+        tree.descent_steps = tree.descent_steps();
         tree.top_levels = tree.build_top_levels();
         Ok(tree)
     }
@@ -291,6 +295,7 @@ impl CountTree {
             quadrature: self.quadrature.clone(),
             density: Arc::clone(&self.density),
             directional_splits: self.directional_splits.clone(),
+            descent_steps: self.descent_steps.clone(),
             top_levels: TopLevels::default(),
         };
         tree.top_levels = tree.build_top_levels();

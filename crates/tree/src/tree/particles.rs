@@ -42,6 +42,7 @@ mod descent;
 mod leaf;
 mod split;
 
+pub(super) use descent::DescentStep;
 pub use descent::LEAF_CELL_ARC;
 pub use leaf::LEAF_PARTICLES;
 pub(super) use leaf::{LeafDraws, LeafParticle};

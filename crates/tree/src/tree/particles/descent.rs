@@ -42,6 +42,38 @@ impl CountTree {
         })
     }
 
+    /// The splits of the material's table ([`DirectionalSplits`]) as one particle's descent
+    /// walks them, index for index (see [`DescentStep`]).
+    ///
+    /// [`DirectionalSplits`]: crate::ndf::DirectionalSplits
+    pub(in crate::tree) fn descent_steps(&self) -> Vec<DescentStep> {
+        let splits = &self.directional_splits;
+        (0..splits.len())
+            .map(|index| {
+                let split = splits.at(index);
+                DescentStep {
+                    probabilities: split.probabilities,
+                    next: std::array::from_fn(|j| {
+                        let child = &split.children[j];
+                        match splits.index_of(child) {
+                            Some(next) if self.final_cell(child).is_none() => next as u32,
+                            _ => LEAVES_TABLE,
+                        }
+                    }),
+                }
+            })
+            .collect()
+    }
+
+    /// The index in the table of the split of `cell`, a cell a single particle's descent has
+    /// reached, if the descent goes on through the table from there: `cell` is not a final
+    /// cell and its split is in the table.
+    fn table_index(&self, cell: &DirectionalCell) -> Option<usize> {
+        self.directional_splits
+            .index_of(cell)
+            .filter(|_| self.final_cell(cell).is_none())
+    }
+
     /// Which of the leaf particles `members` (bits indexing `particles`, each descending the
     /// law above with its own stream, all now in `cell`, which the conic classifies as
     /// `classification`) have normals in the conic; the answer has their bits set.
@@ -115,7 +147,7 @@ impl CountTree {
     /// [`Self::normals_in_conic`] for one particle in `cell`, which the conic neither holds
     /// nor misses: whether its normal is in the conic, and whether its descent reached its
     /// normal (then left in its `descended`). The same steps and classifications, one level
-    /// at a time.
+    /// at a time: through the table by its [`DescentStep`]s while the cells have splits there.
     fn normal_in_conic(
         &self,
         cell: &DirectionalCell,
@@ -125,6 +157,25 @@ impl CountTree {
         particle: &mut LeafParticle,
     ) -> (bool, bool) {
         let mut cell = *cell;
+        if let Some(mut index) = self.table_index(&cell) {
+            loop {
+                let step = &self.descent_steps[index];
+                let j = particle.normal.step(&step.probabilities, stream);
+                let child = &self.directional_splits.at(index).children[j];
+                match memo.classify(child, conic) {
+                    Classification::Disjoint => return (false, false),
+                    Classification::TriangleInsideConic => return (true, false),
+                    Classification::ConicInsideTriangle | Classification::Partial => {}
+                }
+                match step.next[j] {
+                    LEAVES_TABLE => {
+                        cell = *child;
+                        break;
+                    }
+                    next => index = next as usize,
+                }
+            }
+        }
         loop {
             if let Some(triangle) = self.final_cell(&cell) {
                 let normal = particle.normal.point_in(triangle, stream);
@@ -143,7 +194,8 @@ impl CountTree {
     }
 
     /// [`Self::descend_normals`] for one particle in `cell`: its normal, left in its
-    /// `descended`.
+    /// `descended`. Through the table by its [`DescentStep`]s while the cells have splits
+    /// there, then one split at a time.
     fn descend_normal(
         &self,
         cell: &DirectionalCell,
@@ -152,6 +204,19 @@ impl CountTree {
         particle: &mut LeafParticle,
     ) {
         let mut cell = *cell;
+        if let Some(mut index) = self.table_index(&cell) {
+            loop {
+                let step = &self.descent_steps[index];
+                let j = particle.normal.step(&step.probabilities, stream);
+                match step.next[j] {
+                    LEAVES_TABLE => {
+                        cell = self.directional_splits.at(index).children[j];
+                        break;
+                    }
+                    next => index = next as usize,
+                }
+            }
+        }
         loop {
             if let Some(triangle) = self.final_cell(&cell) {
                 particle.descended = Some(particle.normal.point_in(triangle, stream));
@@ -276,6 +341,21 @@ impl CountTree {
         }
     }
 }
+
+/// A split of the material's table of directional splits as a single particle's descent walks
+/// it: the split probabilities, and for each child the index of the child's own split in the
+/// table, or [`LEAVES_TABLE`] when the child is a final cell or its split is not in the table.
+/// A descent in the table thus takes one array look-up per level, instead of a hash look-up
+/// of the cell's split and a final-cell test; where it leaves the table it goes on as before,
+/// so it reaches the same cells with the same draws.
+#[derive(Clone, Copy, Debug)]
+pub(in crate::tree) struct DescentStep {
+    probabilities: [f64; 4],
+    next: [u32; 4],
+}
+
+/// [`DescentStep::next`] for a child where the descent leaves the table.
+const LEAVES_TABLE: u32 = u32::MAX;
 
 /// A leaf particle's normal on its way down the directional hierarchy, by inversion: one
 /// uniform number u picks the child whose interval [p₀ + … + p_{j−1}, p₀ + … + p_j) holds it,
