@@ -260,8 +260,20 @@ pub fn audit_classification(
     rng: &mut crate::SplitMix64,
     audit: &mut ClassificationAudit,
 ) {
+    let answer = case.conic.classify(&case.triangle);
+    audit_answer(case, answer, samples, rng, audit);
+}
+
+/// Checks `answer`, a classification of `case` from anywhere, by brute force as
+/// [`audit_classification`] does.
+pub fn audit_answer(
+    case: &ConicCase,
+    answer: Classification,
+    samples: usize,
+    rng: &mut crate::SplitMix64,
+    audit: &mut ClassificationAudit,
+) {
     let ConicCase { conic, triangle } = case;
-    let answer = conic.classify(triangle);
     audit.cases += 1;
     audit.answers[match answer {
         Classification::Disjoint => 0,

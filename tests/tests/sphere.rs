@@ -6,8 +6,8 @@ use glam::DVec3;
 use glint_sphere::{Classification, OverlapMethod, SphericalConic, SphericalTriangle};
 use glint_tests::SplitMix64;
 use glint_tests::geometry::{
-    CASE_UNIFORMS, ClassificationAudit, ConicCase, audit_classification, overlap_z_score,
-    planar_error, planar_error_bound, uniform_in_cone,
+    CASE_UNIFORMS, ClassificationAudit, ConicCase, audit_answer, audit_classification,
+    overlap_z_score, planar_error, planar_error_bound, uniform_in_cone,
 };
 use proptest::prelude::*;
 
@@ -87,6 +87,34 @@ fn classification_audit_over_many_cases() {
     );
 }
 
+/// The cell of `cells` that holds direction `half` (the first if none does).
+fn holding(cells: [SphericalTriangle; 4], half: DVec3) -> SphericalTriangle {
+    cells
+        .into_iter()
+        .find(|t| t.contains(half))
+        .unwrap_or(cells[0])
+}
+
+/// A small conic (γ = 0.05° to 5.05°, directions within 1.2 rad of the normal) and a cell of
+/// the tree's directional hierarchy 1 to 64 conic widths wide that holds its half vector
+/// (returned last), from six uniform numbers.
+fn small_conic_in_a_wider_cell(
+    [a, b, c, d, e, f]: [f64; 6],
+) -> (SphericalConic, SphericalTriangle, DVec3) {
+    let gamma = (0.05 + 5.0 * a).to_radians();
+    let upper =
+        |s: f64, t: f64| glint_tests::geometry::direction(1.2 * s, std::f64::consts::TAU * t);
+    let (wi, wo) = (upper(b, c), upper(d, e));
+    let conic = SphericalConic::new(wi, wo, gamma).expect("valid conic");
+    let half = (wi + wo).normalize();
+    let mut cell = holding(SphericalTriangle::upper_hemisphere_octants(), half);
+    let width = gamma * (1.0 + 63.0 * f);
+    while cell.longest_edge() > 2.0 * width {
+        cell = holding(cell.subdivide(), half);
+    }
+    (conic, cell, half)
+}
+
 /// Small conics in the tree's cells 1 to 64 times wider (the directional splits of the dense
 /// Table 1 settings): the cell holding the half vector, or at the last step one of its
 /// siblings. The quick answers from the conic's bounding cap against the edges' great circles
@@ -96,28 +124,12 @@ fn small_conics_in_wider_cells_are_never_misclassified() {
     let mut rng = SplitMix64::new(77);
     let mut audit = ClassificationAudit::default();
     for _ in 0..20_000 {
-        let [a, b, c, d, e, f, g, h] = rng.uniforms::<8>();
-        let gamma = (0.05 + 5.0 * a).to_radians();
-        let upper =
-            |s: f64, t: f64| glint_tests::geometry::direction(1.2 * s, std::f64::consts::TAU * t);
-        let (wi, wo) = (upper(b, c), upper(d, e));
-        let conic = SphericalConic::new(wi, wo, gamma).expect("valid conic");
-        let half = (wi + wo).normalize();
-        let holding = |cells: [SphericalTriangle; 4]| {
-            cells
-                .into_iter()
-                .find(|t| t.contains(half))
-                .unwrap_or(cells[0])
-        };
-        let mut triangle = holding(SphericalTriangle::upper_hemisphere_octants());
-        let width = gamma * (1.0 + 63.0 * f);
-        while triangle.longest_edge() > 2.0 * width {
-            triangle = holding(triangle.subdivide());
-        }
-        triangle = if g < 0.5 {
-            holding(triangle.subdivide())
+        let (conic, cell, half) = small_conic_in_a_wider_cell(rng.uniforms());
+        let [g, h] = rng.uniforms();
+        let triangle = if g < 0.5 {
+            holding(cell.subdivide(), half)
         } else {
-            triangle.subdivide()[((h * 4.0) as usize).min(3)]
+            cell.subdivide()[((h * 4.0) as usize).min(3)]
         };
         audit_classification(&ConicCase { conic, triangle }, 64, &mut rng, &mut audit);
     }
@@ -125,6 +137,54 @@ fn small_conics_in_wider_cells_are_never_misclassified() {
     assert!(
         audit.answers[0] > 2000 && audit.answers[2] > 2000,
         "disjoint and conic-inside answers not exercised: {audit:?}"
+    );
+}
+
+/// The children of a cell that holds a small conic, classified at once from the conic's
+/// bounding cap against the centre child's edges (`classify_children_of_holder`, used by the
+/// tree's directional splits): every answer given is right by brute force, agrees with the
+/// child's own classification wherever that one is decisive, and both the centre and the
+/// corners are found holding the conic.
+#[test]
+fn children_of_a_cell_holding_the_conic_are_classified_at_once() {
+    let mut rng = SplitMix64::new(1914);
+    let mut audit = ClassificationAudit::default();
+    let (mut settled, mut centre, mut corner) = (0, 0, 0);
+    for _ in 0..20_000 {
+        let (conic, parent, _) = small_conic_in_a_wider_cell(rng.uniforms());
+        if conic.classify(&parent) != Classification::ConicInsideTriangle {
+            continue;
+        }
+        let children = parent.subdivide();
+        let Some(answers) = conic.classify_children_of_holder(&children) else {
+            continue;
+        };
+        settled += 1;
+        assert_eq!(
+            answers
+                .iter()
+                .filter(|&&a| a == Classification::ConicInsideTriangle)
+                .count(),
+            1
+        );
+        centre += usize::from(answers[3] == Classification::ConicInsideTriangle);
+        corner += usize::from(answers[3] == Classification::Disjoint);
+        for (child, answer) in children.into_iter().zip(answers) {
+            let own = conic.classify(&child);
+            if own != Classification::Partial {
+                assert_eq!(own, answer, "{child:?}");
+            }
+            let case = ConicCase {
+                conic,
+                triangle: child,
+            };
+            audit_answer(&case, answer, 64, &mut rng, &mut audit);
+        }
+    }
+    assert!(audit.is_clean(), "{audit:?}");
+    assert!(
+        settled > 2000 && centre > 500 && corner > 500,
+        "{settled} settled, the centre holding {centre}, a corner {corner}"
     );
 }
 

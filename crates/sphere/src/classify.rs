@@ -334,6 +334,44 @@ impl SphericalConic {
     }
 }
 
+impl SphericalConic {
+    /// How the conic meets the four children of a triangle that holds it (one it classifies
+    /// [`Classification::ConicInsideTriangle`]), the children as [`SphericalTriangle::subdivide`]
+    /// orders them (the corners at a, b and c, then the centre). The centre child's edges
+    /// divide the parent: when the conic's bounding cap lies on one side of each of them, the
+    /// child on that side holds the conic and the other three miss it (the valid set lies in
+    /// the parent and in the cap). `None` when the cap comes within the margin of an inner
+    /// edge, or the conic has no bounding cap: classify the children one by one. Three cross
+    /// products instead of four classifications.
+    #[must_use]
+    pub fn classify_children_of_holder(
+        &self,
+        children: &[SphericalTriangle; 4],
+    ) -> Option<[Classification; 4]> {
+        let (axis, _, sin_max) = self.bounding_cap()?;
+        let [mab, mbc, mca] = children[3].vertices();
+        // The centre's edges, counter-clockwise, and the corner child beyond each.
+        let inner_edges = [(mab, mbc, 1), (mbc, mca, 2), (mca, mab, 0)];
+        let mut holder = 3;
+        for (p, q, corner) in inner_edges {
+            // Points into the centre child; axis·e = |e|·sin δ as in `bounding_cap_against_edges`.
+            let edge_normal = p.cross(q);
+            let length = edge_normal.length();
+            let reach = sin_max * length;
+            let margin = EDGE_PLANE_MARGIN + CAP_MARGIN * length;
+            let distance = axis.dot(edge_normal);
+            if distance < -reach - margin && holder == 3 {
+                holder = corner;
+            } else if !(distance > reach + margin) {
+                return None;
+            }
+        }
+        let mut answers = [Classification::Disjoint; 4];
+        answers[holder] = Classification::ConicInsideTriangle;
+        Some(answers)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -258,6 +258,9 @@ impl CountTree {
     ) -> u32 {
         let mut tested = 0;
         let node = &parent.node;
+        // A cell that holds the conic: its children's answers from the inner edges
+        // (`children_of_holder`), instead of four classifications.
+        let holds_conic = parent.directional == Classification::ConicInsideTriangle;
         // The query's answers for a child (the box at `box_min` of `box_level`, the cell),
         // the parent's in the dimension the split keeps.
         let answer = |memo: &mut QueryMemo,
@@ -284,9 +287,15 @@ impl CountTree {
         // Cached or coloured splits: all four counts are drawn (particle areas need them all,
         // a Dirichlet draw over them).
         let mut all_drawn = |memo: &mut QueryMemo, children: &[Node; 4], spatial: bool| {
-            for child in children.iter().filter(|child| child.count > 0) {
+            let held = (!spatial && holds_conic)
+                .then(|| children_of_holder(conic, &children.map(|child| child.cell)))
+                .flatten();
+            for (j, child) in children.iter().enumerate().filter(|(_, c)| c.count > 0) {
                 tested += 1;
-                let answers = answer(memo, spatial, child.box_min, child.box_level, &child.cell);
+                let answers = match held {
+                    Some(held) => (parent.spatial, held[j]),
+                    None => answer(memo, spatial, child.box_min, child.box_level, &child.cell),
+                };
                 if meets(answers) {
                     queue.push(queued(*child, answers));
                 }
@@ -311,6 +320,9 @@ impl CountTree {
         }
         let split = (!spatial).then(|| self.directional_split(&node.cell));
         let split = split.as_deref();
+        let held = split
+            .filter(|_| holds_conic)
+            .and_then(|split| children_of_holder(conic, &split.children));
         let remembered = memo.remembered_counts(self, node);
         // Whether this split draws anything the memo does not hold yet.
         let mut drawn = remembered.is_none();
@@ -328,13 +340,16 @@ impl CountTree {
                     node.box_level + 1,
                     &node.cell,
                 ),
-                Some(split) => answer(
-                    memo,
-                    false,
-                    node.box_min,
-                    node.box_level,
-                    &split.children[j],
-                ),
+                Some(split) => match held {
+                    Some(held) => (parent.spatial, held[j]),
+                    None => answer(
+                        memo,
+                        false,
+                        node.box_min,
+                        node.box_level,
+                        &split.children[j],
+                    ),
+                },
             });
             if !(meets(pair_answers[0]) || meets(pair_answers[1])) {
                 tested += counts.undivided_visits(pair);
@@ -473,6 +488,16 @@ impl CountTree {
                 + multiplicity * multiplicity * directional * (1.0 - directional),
         }
     }
+}
+
+/// How `conic` meets the four children `cells` of a cell that holds it
+/// ([`SphericalConic::classify_children_of_holder`]), if the inner edges settle it.
+fn children_of_holder(
+    conic: &SphericalConic,
+    cells: &[DirectionalCell; 4],
+) -> Option<[Classification; 4]> {
+    let [a, b, c, d] = cells.each_ref().map(|cell| cell.triangle);
+    conic.classify_children_of_holder(&[a?, b?, c?, d?])
 }
 
 /// An upper bound on Eq. 10's spread √(n·Var) that needs no overlap computation: a particle
