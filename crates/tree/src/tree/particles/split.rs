@@ -106,16 +106,18 @@ impl CountTree {
                 None => match memo.node_with_areas(self, current.id.child(j)) {
                     Some(child) => child,
                     None => {
-                        let mut child = current;
+                        // The split draws all four children's areas: remember them all, as
+                        // the nodes a query counts are often siblings.
+                        let mut children = [current; 4];
                         let mut k = 0;
                         self.emit_children_drawing(&current, true, Some(memo), |c| {
-                            if k == j {
-                                child = c;
-                            }
+                            children[k] = c;
                             k += 1;
                         });
-                        memo.remember_with_areas(self, child);
-                        child
+                        for sibling in children.iter().filter(|c| c.count > 0) {
+                            memo.remember_with_areas(self, *sibling);
+                        }
+                        children[j]
                     }
                 },
             };
