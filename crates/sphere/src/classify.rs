@@ -181,6 +181,33 @@ const CAP_MARGIN: f64 = 1e-10;
 /// times the rounding error of the cross product of unit vectors.
 const EDGE_PLANE_MARGIN: f64 = 1e-13;
 
+/// Which side of an edge's great circle a bounding cap of radius θ_max (`sin_max` = sin θ_max)
+/// lies on, from `distance` = axis·e and `length` = |e| for the edge's normal e = p × q
+/// (axis·e = |e|·sin δ, δ the axis's signed angle from the great circle): `Within` when δ >
+/// θ_max, on e's side, `Beyond` when δ < −θ_max, `None` when the cap comes within the margin
+/// of the circle. Both angles are below π/2, where sin increases. The components of e carry an
+/// absolute rounding error of a few 1e-16 (unit vertices) whatever |e| is, hence the margin's
+/// absolute part.
+fn cap_side(distance: f64, length: f64, sin_max: f64) -> Option<CapSide> {
+    let reach = sin_max * length;
+    let margin = EDGE_PLANE_MARGIN + CAP_MARGIN * length;
+    if distance > reach + margin {
+        Some(CapSide::Within)
+    } else if distance < -reach - margin {
+        Some(CapSide::Beyond)
+    } else {
+        None
+    }
+}
+
+/// The side of an edge's great circle a bounding cap lies on (see [`cap_side`]).
+enum CapSide {
+    /// On the side the edge's normal p × q points to.
+    Within,
+    /// On the other side.
+    Beyond,
+}
+
 impl SphericalConic {
     /// Whether the triangle's bounding cap and the elliptic conic's (centred on ẑ) are apart,
     /// so the two are disjoint: a quick answer for the commonest case (three of a split's four
@@ -218,26 +245,18 @@ impl SphericalConic {
     /// conic and the triangle are disjoint; within all three, the conic lies inside the
     /// triangle. This settles a triangle whose vertices are all outside the conic without the
     /// edge extrema and the axis test (the common case of a cell larger than a small conic).
-    /// With the vertices counter-clockwise, e = p × q points into the triangle and
-    /// ẑ·e = |e|·sin δ, δ the signed angle of ẑ from the edge's great circle; the cap lies
-    /// beyond it when δ < −θ_max and within it when δ > θ_max (both angles are below π/2,
-    /// where sin increases). The components of e carry an absolute rounding error of a few
-    /// 1e-16 (unit vertices, rotated into the frame) whatever |e| is, hence the absolute part
-    /// of the margin.
+    /// With the vertices counter-clockwise, e = p × q points into the triangle ([`cap_side`]).
     fn bounding_cap_against_edges(&self, v: &[FrameVertex; 3]) -> Option<Classification> {
         let (_, _, sin_max) = self.bounding_cap()?;
         let mut cap_inside = true;
         for i in 0..3 {
             // In the conic's frame ẑ is the axis: ẑ·e is the z component of e.
             let edge_normal = v[i].f.cross(v[(i + 1) % 3].f);
-            let length = edge_normal.length();
-            let reach = sin_max * length;
-            let margin = EDGE_PLANE_MARGIN + CAP_MARGIN * length;
-            let distance = edge_normal.z;
-            if distance < -reach - margin {
-                return Some(Classification::Disjoint);
+            match cap_side(edge_normal.z, edge_normal.length(), sin_max) {
+                Some(CapSide::Beyond) => return Some(Classification::Disjoint),
+                Some(CapSide::Within) => {}
+                None => cap_inside = false,
             }
-            cap_inside &= distance > reach + margin;
         }
         cap_inside.then_some(Classification::ConicInsideTriangle)
     }
@@ -354,16 +373,12 @@ impl SphericalConic {
         let inner_edges = [(mab, mbc, 1), (mbc, mca, 2), (mca, mab, 0)];
         let mut holder = 3;
         for (p, q, corner) in inner_edges {
-            // Points into the centre child; axis·e = |e|·sin δ as in `bounding_cap_against_edges`.
+            // Points into the centre child.
             let edge_normal = p.cross(q);
-            let length = edge_normal.length();
-            let reach = sin_max * length;
-            let margin = EDGE_PLANE_MARGIN + CAP_MARGIN * length;
-            let distance = axis.dot(edge_normal);
-            if distance < -reach - margin && holder == 3 {
-                holder = corner;
-            } else if !(distance > reach + margin) {
-                return None;
+            match cap_side(axis.dot(edge_normal), edge_normal.length(), sin_max) {
+                Some(CapSide::Within) => {}
+                Some(CapSide::Beyond) if holder == 3 => holder = corner,
+                _ => return None,
             }
         }
         let mut answers = [Classification::Disjoint; 4];
