@@ -32,7 +32,8 @@ pub fn direction(theta: f64, phi: f64) -> DVec3 {
 }
 
 /// Any unit vector perpendicular to unit `v` (test helper; not the library's construction).
-fn perpendicular(v: DVec3) -> DVec3 {
+#[must_use]
+pub(crate) fn perpendicular(v: DVec3) -> DVec3 {
     let helper = if v.x.abs() < 0.6 { DVec3::X } else { DVec3::Y };
     v.cross(helper).normalize()
 }

@@ -70,7 +70,7 @@ use crate::smooth::{MicrofacetBrdf, above_horizon};
 /// | `multinomial` | exact splits or the paper's normal approximation | exact |
 /// | `colour_channels` | 0, or 3 for Dirichlet-coloured flakes (Fig. 8) | 0 |
 /// | `sampling_scale` | α_s/α of the sampler (Sec. 3.4) | 2 |
-/// | `pdf_quadrature` | the sampling pdf's rule over the cone | cubature (7 or 32 points) |
+/// | `pdf_quadrature` | the sampling pdf's rule over narrow cones (wide ones: slope space) | cubature (7 or 32 points) |
 /// | `pdf_points` | QMC points of the sampling pdf, when `pdf_quadrature` is QMC | 64 |
 /// | `expected_footprint_area` | the footprint area Eq. 11 plans for | 10⁻⁶ |
 /// | `negligible_count` | skip queries whose expected count is below this | 0 (off) |

@@ -56,6 +56,7 @@ mod glint;
 mod glint_sampling;
 mod negligible;
 mod qmc;
+mod slope_pdf;
 pub mod smooth;
 
 pub use bxdf::{Bxdf, BxdfSample};

@@ -1,0 +1,417 @@
+//! The glint sampler's density for cones wide against the lobe: the widened lobe's mass inside
+//! Eq. 8's conic, integrated in slope space along rays from the lobe's peak.
+//!
+//! # Derivation
+//! The sampler of Sec. 3.4 ([`crate::glint_sampling`]) draws a facet normal h from
+//! p_s(h) = D_s(h)(h·n), reflects ω_i about it to ω′ = 2(ω_i·h)h − ω_i (rejecting ω_i·h ≤ 0 and
+//! ω′ below the horizon), then ω_o uniform in the cone of radius γ around ω′. So
+//!
+//! ```text
+//!   pdf(ω_o) = (1/σ) · P[ω′ within γ of ω_o] = (1/σ) ∫_{Ω} D_s(h)(h·n) dh,   σ = 2π(1 − cos γ),
+//! ```
+//!
+//! where Ω is the set of valid normals whose reflection of ω_i lies within γ of ω_o: the
+//! spherical conic of Eq. 8 for (ω_i, ω_o, γ), cut by ω_i·h > 0 and ω′·n > 0. A rule over the
+//! cone around ω_o (the cubature of [`crate::glint_sampling`]) resolves this only while the lobe
+//! of ω′ is wide against the cone; when γ is wide against α_s, or at grazing incidence where
+//! the lobe of ω′ is compressed by cos θ_i across the plane of incidence, the lobe falls between
+//! the rule's points and the pdf is wrong by orders of magnitude. This rule integrates over the
+//! lobe instead, exactly in one of its two dimensions.
+//!
+//! **Slope space.** Write h ∝ H = (α_x ρ cos ψ, α_y ρ sin ψ, 1): ρ is the scaled slope radius
+//! and ψ its angle (the sampler's own map, [`crate::Microfacet::sample_normal`], up to the sign
+//! of the slope, which a symmetric lobe ignores). Then D_s(h)(h·n) dh = P(ρ) ρ dρ dψ with
+//! P(ρ) = e^(−ρ²)/π (Beckmann) or 1/(π(1 + ρ²)²) (GGX), whose mass beyond ρ on a ray is
+//! T(ρ)/(2π) per unit ψ, T(ρ) = e^(−ρ²) or 1/(1 + ρ²). Hence
+//!
+//! ```text
+//!   σ·pdf = (1/2π) ∫_0^{2π} Σ_{[ρ_a, ρ_b] ⊂ ray(ψ) ∩ Ω} (T(ρ_a) − T(ρ_b)) dψ.
+//! ```
+//!
+//! **Each ray exactly.** Along H(ρ) = e_z + ρ·d, d = (α_x cos ψ, α_y sin ψ, 0), the three
+//! conditions are polynomials in ρ: Eq. 8's scaled form q(H) < 0 (a quadratic, from
+//! [`SphericalConic`]'s cancellation-free coefficients), ω_i·H > 0 (linear) and
+//! ω′_z ∝ 2(ω_i·H)H_z − ω_{i,z}|H|² > 0 (a quadratic). Their positive roots cut the ray into
+//! pieces; each piece is in Ω or not as its midpoint is, and T gives its mass in closed form.
+//!
+//! **Over ψ.** The ray's mass G(ψ) is smooth except where a ray grazes the conic's boundary,
+//! the zeros of the discriminant of q(H) in ρ, a quadratic form in (cos ψ, sin ψ); there G has a
+//! square-root edge. The circle is cut at those angles (and at the quarter turns, so no arc is
+//! longer than π/2), and each arc takes the 15-point Gauss–Kronrod rule after the substitution
+//! ψ = ψ_0 + (ψ_1 − ψ_0)(3t² − 2t³), which turns a square-root edge into a smooth one. G can
+//! still change quickly inside an arc (a very anisotropic lobe stretches the conic into a
+//! sliver in scaled slopes), so the rule is adaptive: the piece with the largest Kronrod–Gauss
+//! difference is halved until the differences add up to less than [`RELATIVE_TOLERANCE`] of
+//! the mass, or [`MAX_PIECES`] pieces bound the work (48 pieces of 15 rays).
+
+use glam::DVec3;
+use glint_sphere::SphericalConic;
+
+use crate::distribution::{DistributionKind, Microfacet};
+
+/// The 15-point Gauss–Kronrod rule on [−1, 1]: nodes x ≥ 0 (each used at ±x) with their
+/// Kronrod weights, and the weights of the embedded 7-point Gauss rule on the odd-indexed
+/// nodes (the Gauss rule is exact to degree 13, the Kronrod rule to degree 23).
+const KRONROD_NODES: [f64; 8] = [
+    0.991_455_371_120_812_6,
+    0.949_107_912_342_758_5,
+    0.864_864_423_359_769_1,
+    0.741_531_185_599_394_4,
+    0.586_087_235_467_691_1,
+    0.405_845_151_377_397_2,
+    0.207_784_955_007_898_5,
+    0.0,
+];
+const KRONROD_WEIGHTS: [f64; 8] = [
+    0.022_935_322_010_529_225,
+    0.063_092_092_629_978_55,
+    0.104_790_010_322_250_18,
+    0.140_653_259_715_525_92,
+    0.169_004_726_639_267_9,
+    0.190_350_578_064_785_4,
+    0.204_432_940_075_298_9,
+    0.209_482_141_084_727_83,
+];
+const GAUSS_WEIGHTS: [f64; 4] = [
+    0.129_484_966_168_869_7,
+    0.279_705_391_489_276_7,
+    0.381_830_050_505_118_9,
+    0.417_959_183_673_469_4,
+];
+
+/// The adaptive rule stops when its estimated error is below this fraction of the mass.
+const RELATIVE_TOLERANCE: f64 = 1e-4;
+
+/// At most this many pieces of ψ (15 rays each): the work per pdf is bounded.
+const MAX_PIECES: usize = 48;
+
+/// σ·pdf(ω_o): the mass of `lobe`'s p(h) = D(h)(h·n) over the valid normals of `conic` (Eq. 8
+/// for ω_i, ω_o and γ) that reflect ω_i above the horizon. `wi` is the unit ω_i of the conic.
+pub(crate) fn conic_mass(lobe: &Microfacet, conic: &SphericalConic, wi: DVec3) -> f64 {
+    conic_mass_to(lobe, conic, wi, RELATIVE_TOLERANCE, MAX_PIECES)
+}
+
+/// [`conic_mass`] to a relative `tolerance` with at most `max_pieces` pieces of ψ.
+pub(crate) fn conic_mass_to(
+    lobe: &Microfacet,
+    conic: &SphericalConic,
+    wi: DVec3,
+    tolerance: f64,
+    max_pieces: usize,
+) -> f64 {
+    let (alpha_x, alpha_y) = lobe.alpha();
+    let rays = Rays::new(lobe.kind(), conic, wi, alpha_x, alpha_y);
+    let mut cuts = rays.grazing_angles();
+    cuts.extend((0..4).map(|k| f64::from(k) * std::f64::consts::FRAC_PI_2));
+    cuts.sort_by(f64::total_cmp);
+    cuts.push(cuts[0] + std::f64::consts::TAU);
+    // Pieces as (start, length, Kronrod estimate, error estimate); the one with the largest
+    // error is halved until the errors add up to less than the tolerance.
+    let mut pieces: Vec<(f64, f64, f64, f64)> = cuts
+        .windows(2)
+        .filter(|arc| arc[1] > arc[0])
+        .map(|arc| rays.piece(arc[0], arc[1] - arc[0]))
+        .collect();
+    loop {
+        let (mass, error) = pieces
+            .iter()
+            .fold((0.0, 0.0), |(m, e), piece| (m + piece.2, e + piece.3));
+        if error <= tolerance * mass || pieces.len() >= max_pieces {
+            return mass / std::f64::consts::TAU;
+        }
+        let worst = pieces
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.3.total_cmp(&b.1.3))
+            .map_or(0, |(i, _)| i);
+        let (start, length, _, _) = pieces.swap_remove(worst);
+        pieces.push(rays.piece(start, 0.5 * length));
+        pieces.push(rays.piece(start + 0.5 * length, 0.5 * length));
+    }
+}
+
+/// The conditions of Ω along rays H = e_z + ρ·d(ψ) in slope space, as polynomial coefficients
+/// in ρ built from their values on the basis vectors e_z, u = (α_x, 0, 0), v = (0, α_y, 0).
+struct Rays {
+    kind: DistributionKind,
+    /// (k1, k2, −s) of [`SphericalConic::scaled_coefficients`].
+    k: DVec3,
+    /// e_z, u, v in the conic's frame.
+    e: DVec3,
+    u: DVec3,
+    v: DVec3,
+    wi: DVec3,
+    alpha: (f64, f64),
+}
+
+impl Rays {
+    fn new(
+        kind: DistributionKind,
+        conic: &SphericalConic,
+        wi: DVec3,
+        alpha_x: f64,
+        alpha_y: f64,
+    ) -> Self {
+        let frame = conic.frame();
+        let to_frame = |m: DVec3| DVec3::new(frame[0].dot(m), frame[1].dot(m), frame[2].dot(m));
+        Self {
+            kind,
+            k: conic.scaled_coefficients(),
+            e: to_frame(DVec3::Z),
+            u: to_frame(DVec3::new(alpha_x, 0.0, 0.0)),
+            v: to_frame(DVec3::new(0.0, alpha_y, 0.0)),
+            wi,
+            alpha: (alpha_x, alpha_y),
+        }
+    }
+
+    /// The scaled form's bilinear version q(f, g) for frame coordinates.
+    fn q(&self, f: DVec3, g: DVec3) -> f64 {
+        self.k.x * f.x * g.x + self.k.y * f.y * g.y + self.k.z * f.z * g.z
+    }
+
+    /// ∫ G(ψ) dψ over [start, start + length] by the Gauss–Kronrod pair after the substitution
+    /// ψ = start + length·(3t² − 2t³), t ∈ [0, 1]: (start, length, Kronrod, |Kronrod − Gauss|).
+    fn piece(&self, start: f64, length: f64) -> (f64, f64, f64, f64) {
+        let mut kronrod = 0.0;
+        let mut gauss = 0.0;
+        for (k, (x, weight)) in KRONROD_NODES.iter().zip(KRONROD_WEIGHTS).enumerate() {
+            let signs: &[f64] = if *x == 0.0 { &[1.0] } else { &[1.0, -1.0] };
+            for sign in signs {
+                let t = 0.5 * (1.0 + sign * x);
+                let psi = start + length * t * t * (3.0 - 2.0 * t);
+                let value = 0.5 * length * 6.0 * t * (1.0 - t) * self.mass(psi);
+                kronrod += weight * value;
+                if k % 2 == 1 {
+                    gauss += GAUSS_WEIGHTS[k / 2] * value;
+                }
+            }
+        }
+        (start, length, kronrod, (kronrod - gauss).abs())
+    }
+
+    /// The angles ψ at which a ray grazes the conic's boundary: the zeros of the discriminant
+    /// q(d, e)² − q(d, d)q(e, e) of q(e + ρd) in ρ, with d = u cos ψ + v sin ψ, a quadratic form
+    /// a·c² + 2b·cs + c·s² in (cos ψ, sin ψ).
+    fn grazing_angles(&self) -> Vec<f64> {
+        let (qe, que, qve) = (
+            self.q(self.e, self.e),
+            self.q(self.u, self.e),
+            self.q(self.v, self.e),
+        );
+        let (quu, quv, qvv) = (
+            self.q(self.u, self.u),
+            self.q(self.u, self.v),
+            self.q(self.v, self.v),
+        );
+        let a = que * que - quu * qe;
+        let b = que * qve - quv * qe;
+        let c = qve * qve - qvv * qe;
+        // a cos² + 2b cos sin + c sin² = 0. Its zero directions: with the eigen-decomposition
+        // of [[a, b], [b, c]], eigenvalues λ± along angles θ, θ + π/2, the form is
+        // λ+ cos²(ψ − θ) + λ− sin²(ψ − θ), zero where tan²(ψ − θ) = −λ+/λ−.
+        let mean = 0.5 * (a + c);
+        let radius = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+        let (plus, minus) = (mean + radius, mean - radius);
+        if !(plus > 0.0 && minus < 0.0) {
+            return Vec::new();
+        }
+        let theta = 0.5 * f64::atan2(2.0 * b, a - c);
+        let offset = (plus / -minus).sqrt().atan();
+        [
+            offset,
+            -offset,
+            std::f64::consts::PI + offset,
+            std::f64::consts::PI - offset,
+        ]
+        .into_iter()
+        .map(|x| (theta + x).rem_euclid(std::f64::consts::TAU))
+        .collect()
+    }
+
+    /// Σ (T(ρ_a) − T(ρ_b)) over the pieces of the ray at angle ψ inside Ω.
+    fn mass(&self, psi: f64) -> f64 {
+        let (sin, cos) = psi.sin_cos();
+        let d_frame = cos * self.u + sin * self.v;
+        let d = DVec3::new(self.alpha.0 * cos, self.alpha.1 * sin, 0.0);
+        // q(e + ρd) = q_dd ρ² + 2 q_de ρ + q_ee.
+        let cone = [
+            self.q(self.e, self.e),
+            2.0 * self.q(d_frame, self.e),
+            self.q(d_frame, d_frame),
+        ];
+        // ω_i·H = ω_iz + ρ ω_i·d.
+        let wi_d = self.wi.dot(d);
+        // 2(ω_i·H)·1 − ω_iz|H|² = ω_iz + 2ρ(ω_i·d) − ρ² ω_iz |d|².
+        let above = [self.wi.z, 2.0 * wi_d, -self.wi.z * d.length_squared()];
+        let mut cuts = [0.0; 6];
+        let mut n = 0;
+        for root in positive_roots(cone)
+            .into_iter()
+            .chain(positive_roots(above))
+            .chain(std::iter::once((wi_d < 0.0).then(|| -self.wi.z / wi_d)))
+            .flatten()
+        {
+            cuts[n] = root;
+            n += 1;
+        }
+        let cuts = &mut cuts[..n];
+        cuts.sort_by(f64::total_cmp);
+        let value = |[c0, c1, c2]: [f64; 3], rho: f64| c0 + rho * (c1 + rho * c2);
+        let inside = |rho: f64| {
+            value(cone, rho) < 0.0 && self.wi.z + rho * wi_d > 0.0 && value(above, rho) > 0.0
+        };
+        let mut sum = 0.0;
+        let mut start = 0.0;
+        for end in cuts.iter().copied().chain(std::iter::once(f64::INFINITY)) {
+            if end > start {
+                let middle = if end.is_finite() {
+                    0.5 * (start + end)
+                } else {
+                    2.0 * start + 1.0
+                };
+                if inside(middle) {
+                    sum += self.tail_difference(start, end);
+                }
+            }
+            start = end;
+        }
+        sum
+    }
+
+    /// T(a) − T(b) for a ≤ b, without cancellation when they are close.
+    fn tail_difference(&self, a: f64, b: f64) -> f64 {
+        match self.kind {
+            // e^(−a²) − e^(−b²) = e^(−a²)(1 − e^(−(b − a)(b + a))).
+            DistributionKind::Beckmann => {
+                if b.is_infinite() {
+                    (-a * a).exp()
+                } else {
+                    -(-a * a).exp() * (-(b - a) * (b + a)).exp_m1()
+                }
+            }
+            // 1/(1 + a²) − 1/(1 + b²) = (b − a)(b + a)/((1 + a²)(1 + b²)).
+            DistributionKind::Ggx => {
+                if b.is_infinite() {
+                    1.0 / (1.0 + a * a)
+                } else {
+                    (b - a) * (b + a) / ((1.0 + a * a) * (1.0 + b * b))
+                }
+            }
+        }
+    }
+}
+
+/// The positive real roots of c0 + c1·ρ + c2·ρ², computed without cancellation.
+fn positive_roots([c0, c1, c2]: [f64; 3]) -> [Option<f64>; 2] {
+    let keep = |r: f64| (r > 0.0 && r.is_finite()).then_some(r);
+    if c2 == 0.0 {
+        return [(c1 != 0.0).then(|| -c0 / c1).and_then(keep), None];
+    }
+    let discriminant = c1 * c1 - 4.0 * c2 * c0;
+    if discriminant < 0.0 {
+        return [None, None];
+    }
+    let q = -0.5 * (c1 + discriminant.sqrt().copysign(c1));
+    if q == 0.0 {
+        return [None, None];
+    }
+    [keep(q / c2), keep(c0 / q)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cone::uniform_in_cone;
+    use crate::qmc::zero_two_point;
+
+    /// The probability that ω′ (the sampler's first step, valid) lies within γ of ω_o, by
+    /// drawing `n` normals from the lobe on a (0, 2)-sequence.
+    fn brute_force(lobe: &Microfacet, wi: DVec3, wo: DVec3, gamma: f64, n: u32) -> f64 {
+        let mut hits = 0u32;
+        for i in 0..n {
+            let [a, b] = zero_two_point(i);
+            let h = lobe.sample_normal([a, b]);
+            let wi_h = wi.dot(h);
+            let reflected = 2.0 * wi_h * h - wi;
+            if wi_h > 0.0 && reflected.z > 0.0 && reflected.dot(wo) >= gamma.cos() {
+                hits += 1;
+            }
+        }
+        f64::from(hits) / f64::from(n)
+    }
+
+    #[test]
+    fn the_mass_is_the_probability_of_landing_in_the_cone() {
+        let n = 1 << 20;
+        let mut worst = 0.0_f64;
+        for (kind, ax, ay, gamma_degrees) in [
+            (DistributionKind::Beckmann, 0.02, 0.02, 20.0),
+            (DistributionKind::Ggx, 0.02, 0.02, 60.0),
+            (DistributionKind::Beckmann, 0.3, 0.3, 5.0),
+            (DistributionKind::Ggx, 0.0002, 0.6, 3.0),
+            (DistributionKind::Beckmann, 1.0, 0.01, 40.0),
+        ] {
+            let lobe = Microfacet::new(kind, ax, ay).unwrap();
+            let gamma = f64::to_radians(gamma_degrees);
+            for i in 0..12 {
+                let [a, b] = zero_two_point(i + 5);
+                let wi = uniform_in_cone(DVec3::Z, 1.5, a, b);
+                // Directions near the lobe and away from it.
+                let [c, e] = zero_two_point(i + 101);
+                let wo = if i % 2 == 0 {
+                    let mirror = DVec3::new(-wi.x, -wi.y, wi.z);
+                    uniform_in_cone(mirror, 1.5 * gamma, c, e)
+                } else {
+                    uniform_in_cone(DVec3::Z, 1.5, c, e)
+                };
+                let conic = SphericalConic::new(wi, wo, gamma).unwrap();
+                let exact = conic_mass(&lobe, &conic, wi);
+                let sampled = brute_force(&lobe, wi, wo, gamma, n);
+                // Binomial standard error of the sampled probability, and a floor for the
+                // sequence's discrepancy.
+                let error = (exact - sampled).abs();
+                let allowed = 5.0 * (sampled * (1.0 - sampled) / f64::from(n)).sqrt() + 2e-5;
+                worst = worst.max(error / allowed);
+                assert!(
+                    error <= allowed,
+                    "{kind:?} α ({ax}, {ay}) γ {gamma_degrees}° wi {wi} wo {wo}: {exact} vs {sampled}"
+                );
+            }
+        }
+        println!("worst error / allowed: {worst}");
+    }
+
+    #[test]
+    fn refining_the_arcs_changes_little() {
+        let mut worst = 0.0_f64;
+        for (kind, ax, ay, gamma_degrees) in [
+            (DistributionKind::Beckmann, 0.02, 0.02, 20.0),
+            (DistributionKind::Ggx, 0.0002, 0.0002, 10.0),
+            (DistributionKind::Beckmann, 0.0002, 2e-4 * 50.0, 1.0),
+            (DistributionKind::Ggx, 0.5, 0.5, 60.0),
+        ] {
+            let lobe = Microfacet::new(kind, ax, ay).unwrap();
+            let gamma = f64::to_radians(gamma_degrees);
+            for i in 0..200 {
+                let [a, b] = zero_two_point(i + 7);
+                let wi = uniform_in_cone(DVec3::Z, 1.55, a, b);
+                let [c, e] = zero_two_point(i + 301);
+                let mirror = DVec3::new(-wi.x, -wi.y, wi.z);
+                let wo = uniform_in_cone(mirror, 1.2 * gamma, c, e);
+                if wo.z <= 0.0 {
+                    continue;
+                }
+                let conic = SphericalConic::new(wi, wo, gamma).unwrap();
+                let reference = conic_mass_to(&lobe, &conic, wi, 1e-9, 4096);
+                if reference < 1e-6 {
+                    continue;
+                }
+                let error = (conic_mass(&lobe, &conic, wi) - reference).abs() / reference;
+                worst = worst.max(error);
+            }
+        }
+        println!("worst relative change: {worst:e}");
+        assert!(worst < 1e-3, "{worst}");
+    }
+}
