@@ -338,6 +338,44 @@ fn overlapping_footprints_are_correlated_by_their_overlap() {
     }
 }
 
+/// The node budget bounds a query's work, not only its nodes: a sliver footprint spanning T
+/// tiles tests each node against about T translates, so it visits at most budget·4/T nodes
+/// (it took 58 s at 10⁶ nodes of 10³ tiles), and still counts about N·A·∫p (the truncated
+/// nodes add their expected shares).
+#[test]
+fn slivers_across_many_tiles_keep_the_work_bound() {
+    let config = CountTreeConfig {
+        particles: 1_000_000_000_000_000,
+        epsilon: 0.0,
+        ..CountTreeConfig::default()
+    };
+    let budget = config.node_budget;
+    let tree = CountTree::new(config, glint_tests::counts::beckmann_density(0.1, 0.1)).unwrap();
+    let mut scratch = QueryScratch::new();
+    let conic = near_specular_conic(1.0);
+    for (dx, dy) in [
+        (DVec2::new(1e-6, 0.0), DVec2::new(0.0, 1000.0)),
+        (DVec2::new(1000.0, 0.0), DVec2::new(0.0, 1e-6)),
+        (DVec2::new(5e-7, 0.0), DVec2::new(0.7, 2000.0)),
+    ] {
+        let footprint = Footprint::new(DVec2::new(0.3, 0.4), dx, dy).unwrap();
+        let tiles = footprint.tiles_spanned();
+        let result = tree.query(&footprint, &conic, &mut scratch);
+        let expected = tree.expected_count(&footprint, &conic, &mut scratch);
+        assert!(
+            f64::from(result.nodes_visited) * tiles <= 4.0 * f64::from(budget) + 4.0 * tiles,
+            "{dx} {dy}: {} nodes over {tiles} tiles",
+            result.nodes_visited
+        );
+        assert!(result.truncated && !result.periodic_average);
+        assert!(
+            (result.count - expected).abs() <= 1e-3 * expected,
+            "{dx} {dy}: {} vs {expected}",
+            result.count
+        );
+    }
+}
+
 /// The numerical extremes (α, γ, N, directions, footprints) through the public API: finite, non-negative, bounded.
 #[test]
 fn extreme_parameters_give_finite_bounded_answers() {

@@ -74,7 +74,9 @@ pub struct CountTreeConfig {
     /// The work guard: a query never visits more nodes than this. A partial node whose split
     /// would queue nodes past the budget adds its expected share instead
     /// ([`QueryResult::truncated`] tells). Exact evaluation of huge counts (N = 10¹⁵ over a
-    /// whole tile) would otherwise resolve every particle near the conic's boundary.
+    /// whole tile) would otherwise resolve every particle near the conic's boundary. A
+    /// footprint whose bounding box spans T > 4 texture tiles tests each node at about T/4
+    /// nodes' cost, so its queries get node_budget·4/T (at least 64): the budget bounds work.
     pub node_budget: u32,
     /// Particle areas per colour channel (Sec. 3.4, Fig. 8): 0 for none (each particle counts
     /// 1/N), 1 for gray areas, 3 for RGB.
