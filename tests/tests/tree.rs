@@ -614,6 +614,9 @@ fn many_tile_footprints_are_averaged_within_their_measured_error() {
     let exact = CountTree::new(
         CountTreeConfig {
             many_tiles: ManyTiles::EXACT,
+            // The reference must not be truncated: the work budget gives footprints spanning
+            // T tiles budget·4/T nodes, and these span hundreds.
+            node_budget: u32::MAX,
             ..config
         },
         density,

@@ -211,6 +211,15 @@ impl Footprint {
         span(self.min.x, self.max.x) * span(self.min.y, self.max.y)
     }
 
+    /// What testing one tree node against this footprint costs, in tests of a footprint within
+    /// a few tiles: a node test walks the footprint's integer translates row by row (box
+    /// overlaps, overlap areas, multiplicities), about one unit of work per tile its bounding
+    /// box spans, and the first four come at the price of one. At least 1.
+    #[must_use]
+    pub fn node_test_cost(&self) -> f64 {
+        (self.tiles_spanned() / 4.0).max(1.0)
+    }
+
     /// Whether the parallelogram has no area (a degenerate footprint sees no particles).
     #[must_use]
     pub fn is_degenerate(&self) -> bool {

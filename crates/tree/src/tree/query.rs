@@ -32,23 +32,17 @@ const MAX_EXPLICIT_PARTICLES: u64 = 256;
 /// count as Eq. 10's scale.
 const SCALE_AFTER_NODES: u32 = 512;
 
-/// Footprints whose bounding box spans at most this many texture tiles test a node at the cost
-/// of one; beyond, a node test walks the footprint's translates row by row (box overlaps,
-/// overlap areas and multiplicities cost about one unit per tile spanned), so the node budget
-/// shrinks in proportion: [`node_budget_for`].
-const TILES_PER_NODE_TEST: f64 = 4.0;
-
 /// The node budget of a query of `footprint` under the material's `node_budget`: the budget
-/// bounds the query's work, not only its nodes. A node test of a footprint spanning T tiles
-/// costs about T / [`TILES_PER_NODE_TEST`] nodes' work, so such a query may visit
-/// node_budget·4/T nodes (at least 64). Footprints within four tiles keep the whole budget.
-/// (A sliver 10³ tiles long with N = 10¹⁵ and ε = 0 spent 58 s on 10⁶ nodes of 10³ tiles each.)
+/// bounds the query's work, not only its nodes. A node test of a footprint spanning T > 4
+/// tiles costs about T/4 tests of a small one ([`Footprint::node_test_cost`]), so such a query
+/// may visit node_budget·4/T nodes (at least 64). Footprints within four tiles keep the whole
+/// budget. (A sliver 10³ tiles long with N = 10¹⁵ and ε = 0 spent 58 s on 10⁶ nodes.)
 pub(crate) fn node_budget_for(footprint: &Footprint, node_budget: u32) -> u32 {
-    let tiles = footprint.tiles_spanned();
-    if tiles <= TILES_PER_NODE_TEST {
+    let cost = footprint.node_test_cost();
+    if cost <= 1.0 {
         return node_budget;
     }
-    let scaled = f64::from(node_budget) * TILES_PER_NODE_TEST / tiles;
+    let scaled = f64::from(node_budget) / cost;
     (scaled as u32).clamp(node_budget.min(64), node_budget)
 }
 
