@@ -18,8 +18,10 @@
 //! while the count falls by [`PLAN_GAIN`] or more (within [`PLAN_STEPS`]). This is the paper's
 //! prior run, used to measure the cost the plan is meant to lower. Its work is bounded: at most
 //! [`PLAN_GRID`]² hits with two queries each per candidate, the first candidate counts at most
-//! [`PLAN_NODE_BUDGET`] node visits, and each later one stops counting once it has visited more
-//! nodes than it may to be chosen. Candidates share the material's tables and negligible-query
+//! [`PLAN_NODE_BUDGET`] node visits (weighed by their tests' cost, which grows with the texture
+//! tiles a footprint spans), and each later one stops counting once it has visited more nodes
+//! than it may to be chosen. `sphere_lights.toml` with `fov = 179.999` and
+//! `footprint_scale = 1e6` (footprints of hundreds of tiles) loads in 0.53 s. Candidates share the material's tables and negligible-query
 //! test ([`GlintMaterial::with_realization`]); on the scenes in `scenes/` the run
 //! adds 0.01–0.14 s to loading.
 //!
@@ -53,10 +55,12 @@ pub const PLAN_GAIN: f64 = 0.05;
 /// outside any node's area changes nothing, and every candidate stays a valid, normal area).
 const PLAN_MEAN_RANGE: [f64; 2] = [1.0 / (1u128 << 126) as f64, (1u64 << 40) as f64];
 
-/// Node visits the first candidate counts at most; later candidates count at most 95% of the
-/// fewest so far. The prior run's work per glint material is bounded by this times the
-/// candidates tried, whatever the footprints.
-pub const PLAN_NODE_BUDGET: u64 = 20_000_000;
+/// Node visits the first candidate counts at most, each weighed by its node test's cost
+/// ([`nodes_visited`]); later candidates count at most 95% of the fewest so far. The prior
+/// run's work per glint material is bounded by this times the candidates tried, whatever the
+/// footprints: about 0.4 s per candidate at the bound. The shipped scenes' first candidates
+/// count 2.4·10³–1.3·10⁵, so the bound leaves them 15 times room.
+pub const PLAN_NODE_BUDGET: u64 = 2_000_000;
 
 /// Mirror bounces the prior run follows after the camera ray, at most.
 const PLAN_MIRROR_BOUNCES: u32 = 8;
@@ -232,8 +236,11 @@ pub fn plan_queries(
     queries
 }
 
-/// Tree nodes visited by `queries` on `brdf`, counted until the sum exceeds `limit` (a
-/// candidate that has visited more cannot be chosen).
+/// Tree nodes visited by `queries` on `brdf`, each weighed by what testing a node against its
+/// footprint costs ([`Footprint::node_test_cost`]: 1 for footprints within four texture tiles,
+/// more for larger ones), counted until the sum exceeds `limit` (a candidate that has visited
+/// more cannot be chosen). So [`PLAN_NODE_BUDGET`] bounds the prior run's work, not only its
+/// nodes, whatever the footprints.
 #[must_use]
 pub fn nodes_visited(
     brdf: &DiscreteBrdf,
@@ -241,12 +248,13 @@ pub fn nodes_visited(
     scratch: &mut QueryScratch,
     limit: u64,
 ) -> u64 {
-    let mut nodes = 0;
+    let mut nodes = 0u64;
     for query in queries {
         let result = brdf
             .at(&query.footprint, scratch)
             .evaluate(query.wi, query.wo);
-        nodes += u64::from(result.nodes_visited);
+        let cost = query.footprint.node_test_cost().min(1e9);
+        nodes = nodes.saturating_add((f64::from(result.nodes_visited) * cost) as u64);
         if nodes > limit {
             break;
         }
@@ -522,5 +530,40 @@ mod tests {
         assert_eq!(mean_area(g, &hits), Some(PLAN_MEAN_RANGE[0]));
         let planned = planned_area(g, &hits).unwrap().unwrap();
         assert!(planned > 0.0 && planned.is_normal(), "planned {planned:e}");
+    }
+
+    /// Footprints spanning many texture tiles make each node test dearer, and the plan's
+    /// budget counts that cost: a query over a 40-tile sliver is charged 10 times its nodes, so
+    /// the run's work stays within [`PLAN_NODE_BUDGET`] per candidate (a legal scene of such
+    /// footprints took 56.7 s to load when nodes were counted alone).
+    #[test]
+    fn the_budget_weighs_nodes_by_their_tests_cost() {
+        let scene = floor_scene(0.5, "");
+        let g = glint(&scene);
+        let hit = |duv: (DVec2, DVec2)| PlanHit {
+            material: 0,
+            uv: DVec2::new(0.3, 0.6),
+            duv,
+            wi: DVec3::new(0.1, 0.0, 1.0).normalize(),
+            to_light: Some(DVec3::new(-0.1, 0.0, 1.0).normalize()),
+            u_sampler: [0.3, 0.7, 0.2, 0.9],
+        };
+        // uv_scale 0.5: a sliver 1e-3 by 80 is 40 tiles long (41 spanned).
+        let sliver = hit((DVec2::new(2e-3, 0.0), DVec2::new(0.0, 80.0)));
+        let mut scratch = QueryScratch::default();
+        let queries = plan_queries(g, &[&sliver], &mut scratch);
+        assert!(!queries.is_empty());
+        let query = &queries[..1];
+        let cost = query[0].footprint.node_test_cost();
+        assert!((cost - 41.0 / 4.0).abs() < 1e-12, "{cost}");
+        let nodes = g
+            .brdf
+            .at(&query[0].footprint, &mut scratch)
+            .evaluate(query[0].wi, query[0].wo)
+            .nodes_visited;
+        assert_eq!(
+            nodes_visited(&g.brdf, query, &mut scratch, u64::MAX),
+            (f64::from(nodes) * cost) as u64
+        );
     }
 }
