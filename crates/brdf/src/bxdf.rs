@@ -25,18 +25,15 @@ pub struct BxdfSample {
 
 impl BxdfSample {
     /// The sample of direction `wo` with BRDF value `f` and density `pdf`, or `None` when the
-    /// density is not a positive finite number (the sample could not be weighted).
+    /// density is not a positive finite number or the weight f·cos θ_o/pdf is not finite (a
+    /// subnormal density such as 6·10⁻³¹⁷ overflows it): the sample could not be weighted.
     #[must_use]
     pub fn weighted(wo: DVec3, f: DVec3, pdf: f64) -> Option<Self> {
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        Some(Self {
-            wo,
-            f,
-            pdf,
-            weight: f * (wo.z / pdf),
-        })
+        let weight = f * (wo.z / pdf);
+        weight.is_finite().then_some(Self { wo, f, pdf, weight })
     }
 }
 
@@ -53,4 +50,21 @@ pub trait Bxdf {
     fn sample(&self, wi: DVec3, u: Self::Uniforms) -> Option<BxdfSample>;
     /// The density of `sample` choosing ω_o, in solid angle.
     fn pdf(&self, wi: DVec3, wo: DVec3) -> f64;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_that_cannot_be_weighted_are_none() {
+        let wo = DVec3::new(0.0, 0.6, 0.8);
+        let f = DVec3::splat(2.0);
+        assert!(BxdfSample::weighted(wo, f, 0.0).is_none());
+        assert!(BxdfSample::weighted(wo, f, f64::NAN).is_none());
+        // A subnormal density overflows the weight.
+        assert!(BxdfSample::weighted(wo, f, 6e-317).is_none());
+        let s = BxdfSample::weighted(wo, f, 0.5).unwrap();
+        assert_eq!(s.weight, DVec3::splat(3.2));
+    }
 }
