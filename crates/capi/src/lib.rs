@@ -484,10 +484,11 @@ fn field_of(error: glint_brdf::BrdfError, p: &GlintMaterialParams) -> &'static s
     match error {
         E::InvalidRoughness { alpha } if alpha.to_bits() == p.alpha_x.to_bits() => "alpha_x",
         E::InvalidRoughness { .. } => "alpha_y",
-        E::InvalidFresnel if p.fresnel == GlintFresnel::GLINT_FRESNEL_DIELECTRIC as u32 => {
+        E::InvalidFresnel { .. } if p.fresnel == GlintFresnel::GLINT_FRESNEL_DIELECTRIC as u32 => {
             "dielectric_eta"
         }
-        E::InvalidFresnel => "conductor_eta, conductor_k",
+        E::InvalidFresnel { parameter: "k", .. } => "conductor_k",
+        E::InvalidFresnel { .. } => "conductor_eta",
         E::InvalidConeRadius { .. } => "gamma_degrees",
         E::InvalidNegligibleCount { .. } => "negligible_count",
         E::InvalidPdfPoints { .. } => "pdf_points",

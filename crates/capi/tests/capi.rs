@@ -517,7 +517,38 @@ fn invalid_parameters_are_named() {
                 conductor_eta: [1.0, -1.0, 1.0],
                 ..defaults
             },
-            "conductor_eta, conductor_k: Fresnel",
+            "conductor_eta: Fresnel eta = -1.0",
+        ),
+        (
+            GlintMaterialParams {
+                fresnel: GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32,
+                conductor_eta: [1e300; 3],
+                conductor_k: [1e300; 3],
+                ..defaults
+            },
+            "conductor_eta: Fresnel eta = 1e300 is invalid: eta must be in [1e-3, 1e3]",
+        ),
+        (
+            GlintMaterialParams {
+                fresnel: GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32,
+                conductor_k: [0.0, 0.0, 1001.0],
+                ..defaults
+            },
+            "conductor_k: Fresnel k = 1001.0",
+        ),
+        (
+            GlintMaterialParams {
+                gamma_degrees: 1e-5,
+                ..defaults
+            },
+            "gamma_degrees: ",
+        ),
+        (
+            GlintMaterialParams {
+                epsilon: 1.5,
+                ..defaults
+            },
+            "epsilon: ",
         ),
         (
             GlintMaterialParams {

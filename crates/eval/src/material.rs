@@ -2,8 +2,8 @@
 //! the messages that name a rejected field.
 
 use glint_brdf::{
-    DVec3, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MultinomialMode,
-    PdfQuadrature,
+    BrdfError, DVec3, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet,
+    MultinomialMode, PdfQuadrature,
 };
 use serde_json::{Map, Value};
 
@@ -189,16 +189,23 @@ impl MaterialSpec {
                 ));
             }
         };
-        parameters.fresnel = match self.fresnel {
-            FresnelSpec::None => Fresnel::None,
-            FresnelSpec::Conductor { eta, k } => Fresnel::Conductor {
-                eta: DVec3::from_array(eta),
-                k: DVec3::from_array(k),
-            },
-            FresnelSpec::Dielectric { eta } => Fresnel::Dielectric { eta },
-        }
-        .validated()
-        .map_err(|e| format!("material: {e}"))?;
+        let (fresnel, kind) = match self.fresnel {
+            FresnelSpec::None => (Fresnel::None, "none"),
+            FresnelSpec::Conductor { eta, k } => (
+                Fresnel::Conductor {
+                    eta: DVec3::from_array(eta),
+                    k: DVec3::from_array(k),
+                },
+                "conductor",
+            ),
+            FresnelSpec::Dielectric { eta } => (Fresnel::Dielectric { eta }, "dielectric"),
+        };
+        parameters.fresnel = fresnel.validated().map_err(|e| match e {
+            BrdfError::InvalidFresnel { parameter, .. } => {
+                format!("material.fresnel.{kind}.{parameter}: {e}")
+            }
+            other => format!("material: {other}"),
+        })?;
         Ok(parameters)
     }
 
