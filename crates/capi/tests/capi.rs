@@ -660,6 +660,21 @@ fn invalid_arguments_are_named() {
         f64::NAN.to_bits(),
         "nothing written on failure"
     );
+    // A footprint whose area (or area times N) would overflow is refused, naming it.
+    for huge in [1e154, 1e300, 1.0000001e15] {
+        let footprint = GlintFootprint {
+            duv_dx: [huge, 0.0],
+            duv_dy: [0.0, huge],
+            ..PINNED_FOOTPRINT
+        };
+        let (status, message) = eval(&footprint, wi, wo, &mut e);
+        assert_eq!(status, GLINT_INVALID_ARGUMENT);
+        assert!(
+            message.starts_with("glint_eval: `footprint`: footprint edge component")
+                && message.contains("±1e15"),
+            "{message}"
+        );
+    }
 
     let mut s = empty_sample();
     for (u, name) in [
