@@ -125,14 +125,14 @@ impl EvalMaterial {
     }
 }
 
-/// A direction, normalized ([`glint_brdf::frame::unit_direction`]); zero and non-finite
-/// vectors are rejected.
+/// A direction as [`glint_brdf::frame::given_direction`] takes it (the C API's rule too);
+/// zero and non-finite vectors are rejected.
 fn direction(v: [f64; 3], name: &str) -> Result<DVec3, String> {
     let v = DVec3::from_array(v);
     if !v.is_finite() {
         return Err(format!("{name} must hold finite numbers, not {v}"));
     }
-    glint_brdf::frame::unit_direction(v).ok_or_else(|| format!("{name} has zero length"))
+    glint_brdf::frame::given_direction(v).ok_or_else(|| format!("{name} has zero length"))
 }
 
 fn vector2(v: [f64; 2], name: &str) -> Result<DVec2, String> {
