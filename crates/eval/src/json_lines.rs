@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use glint_brdf::{DVec3, QueryScratch};
 use serde_json::{Map, Value, json};
 
-use crate::material::{MaterialSpec, numbers_in};
+use crate::material::{MaterialSpec, known_fields, numbers_in};
 use crate::request::{EvalMaterial, uniforms_from_three};
 
 /// How many built materials [`JsonLines`] keeps: a material holds its count tree's caches
@@ -58,15 +58,7 @@ impl JsonLines {
         if !matches!(op, "eval" | "sample" | "pdf") {
             return Err(format!("unknown op `{op}`: use eval, sample or pdf"));
         }
-        if let Some(unknown) = request
-            .keys()
-            .find(|k| !REQUEST_FIELDS.contains(&k.as_str()))
-        {
-            return Err(format!(
-                "unknown field `{unknown}` (known: {})",
-                REQUEST_FIELDS.join(", ")
-            ));
-        }
+        known_fields(request, &REQUEST_FIELDS, "field")?;
         let material = request.get("material").ok_or("missing field `material`")?;
         let key = material.to_string();
         self.requests += 1;
