@@ -1088,3 +1088,52 @@ fn answers_are_glint_evals_bit_for_bit() {
     }
     assert!(unchanged > 0, "some queries find particles");
 }
+
+/// The ends of the ranges `GlintMaterialParams` documents are accepted (the invalid values
+/// just beyond them are in `invalid_parameters_are_named`).
+#[test]
+fn documented_ranges_are_accepted_at_their_ends() {
+    let defaults = default_params();
+    let conductor = |eta: f64, k: f64| GlintMaterialParams {
+        fresnel: GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32,
+        conductor_eta: [eta; 3],
+        conductor_k: [k; 3],
+        ..defaults
+    };
+    for params in [
+        GlintMaterialParams {
+            gamma_degrees: 5.73e-5,
+            ..defaults
+        },
+        GlintMaterialParams {
+            gamma_degrees: 60.0,
+            ..defaults
+        },
+        GlintMaterialParams {
+            epsilon: 0.0,
+            ..defaults
+        },
+        GlintMaterialParams {
+            epsilon: 1.0,
+            ..defaults
+        },
+        GlintMaterialParams {
+            seed: u64::MAX,
+            ..defaults
+        },
+        conductor(1e-3, 0.0),
+        conductor(1e3, 1e3),
+        GlintMaterialParams {
+            fresnel: GlintFresnel::GLINT_FRESNEL_DIELECTRIC as u32,
+            dielectric_eta: 1e3,
+            ..defaults
+        },
+    ] {
+        let handles = Handles::new(&params);
+        let e = handles.eval(&PINNED_FOOTPRINT, [0.0, 0.0, 1.0], [0.1, 0.0, 0.99]);
+        assert!(
+            e.f_hat.iter().all(|f| f.is_finite() && *f >= 0.0),
+            "{params:?}: {e:?}"
+        );
+    }
+}
