@@ -216,3 +216,46 @@ def test_batches_are_deterministic_in_any_split_and_thread():
     for t in threads:
         t.join()
     assert all(_same(r["f_hat"], whole["f_hat"]) for r in results)
+
+
+def _fork_child(material, rows, connection):
+    """In a forked child: the material's answers to ``rows``, and a material built there."""
+    try:
+        r = material.eval(*rows)
+        fresh = glint.Material(**MATERIALS[0]).eval(*rows)
+        connection.send((r["count"], r["f_hat"], r["error"].tolist(), fresh["count"]))
+    finally:
+        connection.close()
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # Python 3.12 warns of fork
+def test_a_forked_child_answers_large_batches():
+    """A process that used the package and then forks (multiprocessing's default on Linux)
+    answers batches of more than 256 rows (several parallel tasks) in the child, as the
+    parent does. The parent's worker threads do not survive the fork; the child builds its
+    own."""
+    import multiprocessing
+
+    m = glint.Material(**MATERIALS[0])
+    wi, wo, uv, dx, dy, _ = _queries(5000, seed=21)
+    rows = (wi, wo, uv, dx, dy)
+    parent = m.eval(*rows)  # the parent's pool exists and has worked
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    child = context.Process(target=_fork_child, args=(m, rows, sender))
+    child.start()
+    sender.close()
+    try:
+        assert receiver.poll(120), "the forked child did not answer within 120 s (deadlock?)"
+        count, f_hat, errors, fresh_count = receiver.recv()
+    finally:
+        child.join(10)
+        if child.is_alive():
+            child.kill()
+            child.join()
+    assert child.exitcode == 0
+    assert _same(count, parent["count"]) and _same(f_hat, parent["f_hat"])
+    assert errors == parent["error"].tolist()
+    assert _same(fresh_count, parent["count"])
+    # The parent still answers after its child is gone.
+    assert _same(m.eval(*rows)["count"], parent["count"])
