@@ -210,6 +210,8 @@ mod tests {
             r#"{{"op": "eval", "material": {MATERIAL}, "uv": [0.3, 0.4], "duv_dx": [0.001, 0.0], "duv_dy": [0.0, 0.001], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
         );
         let with = |field: &str| eval.replace("\"seed\": 7", &format!("\"seed\": 7, {field}"));
+        let fresnel =
+            |value: &str| eval.replace("\"fresnel\": \"none\"", &format!("\"fresnel\": {value}"));
         let cases = [
             (
                 with("\"pdf_points\": -3"),
@@ -238,38 +240,23 @@ mod tests {
             ),
             (eval.replace("\"op\"", "\"opp\""), "unknown field `opp`"),
             (
-                eval.replace(
-                    "\"fresnel\": \"none\"",
-                    "\"fresnel\": {\"conductor\": {\"eta\": [1, 1, 1], \"k\": [0, 0, 0], \"kk\": 1}}",
-                ),
+                fresnel("{\"conductor\": {\"eta\": [1, 1, 1], \"k\": [0, 0, 0], \"kk\": 1}}"),
                 "unknown material.fresnel.conductor field `kk` (known: eta, k)",
             ),
             (
-                eval.replace(
-                    "\"fresnel\": \"none\"",
-                    "\"fresnel\": {\"dielectric\": {\"eta\": 1.5, \"k\": 0}}",
-                ),
+                fresnel("{\"dielectric\": {\"eta\": 1.5, \"k\": 0}}"),
                 "unknown material.fresnel.dielectric field `k` (known: eta)",
             ),
             (
-                eval.replace(
-                    "\"fresnel\": \"none\"",
-                    "\"fresnel\": {\"conductor\": {\"eta\": [1e300, 1, 1], \"k\": [1e300, 0, 0]}}",
-                ),
+                fresnel("{\"conductor\": {\"eta\": [1e300, 1, 1], \"k\": [1e300, 0, 0]}}"),
                 "material.fresnel.conductor.eta: Fresnel eta = 1e300 is invalid: eta must be in [1e-3, 1e3] and k in [0, 1e3]",
             ),
             (
-                eval.replace(
-                    "\"fresnel\": \"none\"",
-                    "\"fresnel\": {\"conductor\": {\"eta\": [1, 1, 1], \"k\": [0, 1001, 0]}}",
-                ),
+                fresnel("{\"conductor\": {\"eta\": [1, 1, 1], \"k\": [0, 1001, 0]}}"),
                 "material.fresnel.conductor.k: Fresnel k = 1001.0",
             ),
             (
-                eval.replace(
-                    "\"fresnel\": \"none\"",
-                    "\"fresnel\": {\"dielectric\": {\"eta\": 0.0001}}",
-                ),
+                fresnel("{\"dielectric\": {\"eta\": 0.0001}}"),
                 "material.fresnel.dielectric.eta: Fresnel eta = 0.0001",
             ),
             (

@@ -1967,6 +1967,38 @@ scale = {env_scale}
         }
     }
 
+    /// Each (slot, value, field, words): the scene with `value` in `slot` is refused, naming
+    /// `field`, with a problem containing `words`.
+    fn assert_slot_errors(fixture: &Fixture, cases: &[(&str, f64, &str, &str)]) {
+        for &(slot, value, field, words) in cases {
+            let mut values = ordinary_values();
+            values.insert(slot, value);
+            let (f, problem) = error_in(fixture, &values);
+            assert_eq!(f, field, "{slot} = {value}: {problem}");
+            assert!(
+                problem.contains(words),
+                "{slot} = {value}: `{problem}` lacks `{words}`"
+            );
+        }
+    }
+
+    /// Each (from, to, field, words): `text` with `from` replaced by `to` is refused, naming
+    /// `field`, with a problem containing `words`.
+    fn assert_edit_errors(fixture: &Fixture, text: &str, cases: &[(&str, &str, &str, &str)]) {
+        for &(from, to, field, words) in cases {
+            assert!(text.contains(from), "{from}");
+            match parse_scene(&text.replacen(from, to, 1), &fixture.scene_path()) {
+                Err(TracerError::Scene {
+                    field: f, problem, ..
+                }) => {
+                    assert_eq!(f, field, "{to}: {problem}");
+                    assert!(problem.contains(words), "{to}: `{problem}` lacks `{words}`");
+                }
+                other => panic!("{to}: {other:?}"),
+            }
+        }
+    }
+
     fn ordinary_values() -> BTreeMap<&'static str, f64> {
         SLOTS.iter().map(|s| (*s, ordinary(s))).collect()
     }
@@ -2042,80 +2074,67 @@ scale = {env_scale}
     #[test]
     fn slipped_values_are_named_errors() {
         let fixture = Fixture::new("limits-slipped");
-        for (slot, value, field, words) in [
-            (
-                "mirror_colour",
-                f64::NAN,
-                "materials.shiny.colour",
-                "reflectance factor components must be in [0, 1], got [0.9, NaN, 0.8]",
-            ),
-            (
-                "eta",
-                1e300,
-                "materials.sparkle.fresnel.eta",
-                "Fresnel eta = 1e300",
-            ),
-            ("eta", 0.0, "materials.sparkle.fresnel.eta", "[1e-3, 1e3]"),
-            (
-                "k",
-                1001.0,
-                "materials.sparkle.fresnel.k",
-                "Fresnel k = 1001.0",
-            ),
-            (
-                "mirror_eta",
-                1e-4,
-                "materials.shiny.fresnel.eta",
-                "[1e-3, 1e3]",
-            ),
-            (
-                "uv_scale",
-                0.0,
-                "materials.sparkle.uv_scale",
-                "positive and finite",
-            ),
-            (
-                "uv_scale",
-                f64::NAN,
-                "materials.sparkle.uv_scale",
-                "positive and finite",
-            ),
-        ] {
-            let mut values = ordinary_values();
-            values.insert(slot, value);
-            let (f, problem) = error_in(&fixture, &values);
-            assert_eq!(f, field, "{slot} = {value}: {problem}");
-            assert!(
-                problem.contains(words),
-                "{slot} = {value}: `{problem}` lacks `{words}`"
-            );
-        }
+        assert_slot_errors(
+            &fixture,
+            &[
+                (
+                    "mirror_colour",
+                    f64::NAN,
+                    "materials.shiny.colour",
+                    "reflectance factor components must be in [0, 1], got [0.9, NaN, 0.8]",
+                ),
+                (
+                    "eta",
+                    1e300,
+                    "materials.sparkle.fresnel.eta",
+                    "Fresnel eta = 1e300",
+                ),
+                ("eta", 0.0, "materials.sparkle.fresnel.eta", "[1e-3, 1e3]"),
+                (
+                    "k",
+                    1001.0,
+                    "materials.sparkle.fresnel.k",
+                    "Fresnel k = 1001.0",
+                ),
+                (
+                    "mirror_eta",
+                    1e-4,
+                    "materials.shiny.fresnel.eta",
+                    "[1e-3, 1e3]",
+                ),
+                (
+                    "uv_scale",
+                    0.0,
+                    "materials.sparkle.uv_scale",
+                    "positive and finite",
+                ),
+                (
+                    "uv_scale",
+                    f64::NAN,
+                    "materials.sparkle.uv_scale",
+                    "positive and finite",
+                ),
+            ],
+        );
         let text = scene(&fixture, &ordinary_values());
-        for (from, to, field, words) in [
-            (
-                "particles = 1e6",
-                "particles = 9007199254740994",
-                "materials.sparkle.particles",
-                "must be a whole number in [1, 2^53]",
-            ),
-            (
-                "look_at = [0, 0, 0]\n",
-                "look_at = [0, 0, 0]\n[[camera.keyframes]]\nframe = 3\n[[camera.keyframes]]\nframe = 1\n[[camera.keyframes]]\nframe = 3.0\n",
-                "camera.keyframes[2].frame",
-                "frame 3 is also camera.keyframes[0]'s",
-            ),
-        ] {
-            assert!(text.contains(from), "{from}");
-            match parse_scene(&text.replacen(from, to, 1), &fixture.scene_path()) {
-                Err(TracerError::Scene {
-                    field: f, problem, ..
-                }) => {
-                    assert_eq!(f, field, "{to}: {problem}");
-                    assert!(problem.contains(words), "{to}: `{problem}` lacks `{words}`");
-                }
-                other => panic!("{to}: {other:?}"),
-            }
-        }
+        assert_edit_errors(
+            &fixture,
+            &text,
+            &[
+                (
+                    "particles = 1e6",
+                    "particles = 9007199254740994",
+                    "materials.sparkle.particles",
+                    "must be a whole number in [1, 2^53]",
+                ),
+                (
+                    "look_at = [0, 0, 0]\n",
+                    "look_at = [0, 0, 0]\n[[camera.keyframes]]\nframe = 3\n[[camera.keyframes]]\nframe = 1\n[[camera.keyframes]]\nframe = 3.0\n",
+                    "camera.keyframes[2].frame",
+                    "frame 3 is also camera.keyframes[0]'s",
+                ),
+            ],
+        );
     }
 
     /// A glint material with `uv_scale` = 10³⁰⁰ (footprints of 10²⁹⁸ texture units, beyond
@@ -2177,45 +2196,39 @@ scale = {env_scale}
     #[test]
     fn light_and_reflectance_values_are_bounded() {
         let fixture = Fixture::new("limits-light");
-        for (slot, value, field, words) in [
-            (
-                "power",
-                1e300,
-                "lights[0].power",
-                "lower the power or enlarge the light",
-            ),
-            ("radiance", 1e300, "lights[1].radiance", "[0, 1e20]"),
-            ("irradiance", 1e21, "lights[2].irradiance", "[0, 1e20]"),
-            ("env", 1e300, "lights[3].radiance", "times scale"),
-            ("env_scale", 1e300, "lights[3].radiance", "times scale"),
-            (
-                "albedo",
-                5.0,
-                "materials.white.colour",
-                "albedo components must be in [0, 1]",
-            ),
-            (
-                "weight",
-                2.0,
-                "materials.both.components[0].weight",
-                "must be in [0, 1]",
-            ),
-            (
-                "light_radius",
-                1e-170,
-                "lights[0].radius",
-                "must be in [1e-9",
-            ),
-        ] {
-            let mut values = ordinary_values();
-            values.insert(slot, value);
-            let (f, problem) = error_in(&fixture, &values);
-            assert_eq!(f, field, "{slot} = {value}: {problem}");
-            assert!(
-                problem.contains(words),
-                "{slot} = {value}: `{problem}` lacks `{words}`"
-            );
-        }
+        assert_slot_errors(
+            &fixture,
+            &[
+                (
+                    "power",
+                    1e300,
+                    "lights[0].power",
+                    "lower the power or enlarge the light",
+                ),
+                ("radiance", 1e300, "lights[1].radiance", "[0, 1e20]"),
+                ("irradiance", 1e21, "lights[2].irradiance", "[0, 1e20]"),
+                ("env", 1e300, "lights[3].radiance", "times scale"),
+                ("env_scale", 1e300, "lights[3].radiance", "times scale"),
+                (
+                    "albedo",
+                    5.0,
+                    "materials.white.colour",
+                    "albedo components must be in [0, 1]",
+                ),
+                (
+                    "weight",
+                    2.0,
+                    "materials.both.components[0].weight",
+                    "must be in [0, 1]",
+                ),
+                (
+                    "light_radius",
+                    1e-170,
+                    "lights[0].radius",
+                    "must be in [1e-9",
+                ),
+            ],
+        );
     }
 
     /// Mistakes inside sections are named by their field: a short array, an unknown material
@@ -2224,56 +2237,48 @@ scale = {env_scale}
     fn errors_name_the_field_inside_sections() {
         let fixture = Fixture::new("limits-fields");
         let text = scene(&fixture, &ordinary_values());
-        for (from, to, field, words) in [
-            (
-                "center = [2.5e-1, 0, 0]",
-                "center = [0.25, 0]",
-                "shapes[0].center",
-                "invalid length 2",
-            ),
-            (
-                "{ material = \"white\", weight",
-                "{ material = \"chalk\", weight",
-                "materials.both.components[0].material",
-                "unknown material `chalk`",
-            ),
-            (
-                "weight = 0.5 }",
-                "weight = \"half\" }",
-                "materials.both.components[1].weight",
-                "invalid type",
-            ),
-            (
-                "colour = 5e-1",
-                "colour = [0.5, 0.5]",
-                "materials.white.colour",
-                "a number or an array of 3 numbers",
-            ),
-            (
-                "type = \"directional\"",
-                "type = \"spot\"",
-                "lights[2].type",
-                "unknown type `spot`",
-            ),
-            (
-                "transform = { scale",
-                "transform = { skew = 1, scale",
-                "shapes[2].transform",
-                "unknown field `skew`",
-            ),
-        ] {
-            assert!(text.contains(from), "{from}");
-            let changed = text.replacen(from, to, 1);
-            match parse_scene(&changed, &fixture.scene_path()) {
-                Err(TracerError::Scene {
-                    field: f, problem, ..
-                }) => {
-                    assert_eq!(f, field, "{to}: {problem}");
-                    assert!(problem.contains(words), "{to}: `{problem}` lacks `{words}`");
-                }
-                other => panic!("{to}: {other:?}"),
-            }
-        }
+        assert_edit_errors(
+            &fixture,
+            &text,
+            &[
+                (
+                    "center = [2.5e-1, 0, 0]",
+                    "center = [0.25, 0]",
+                    "shapes[0].center",
+                    "invalid length 2",
+                ),
+                (
+                    "{ material = \"white\", weight",
+                    "{ material = \"chalk\", weight",
+                    "materials.both.components[0].material",
+                    "unknown material `chalk`",
+                ),
+                (
+                    "weight = 0.5 }",
+                    "weight = \"half\" }",
+                    "materials.both.components[1].weight",
+                    "invalid type",
+                ),
+                (
+                    "colour = 5e-1",
+                    "colour = [0.5, 0.5]",
+                    "materials.white.colour",
+                    "a number or an array of 3 numbers",
+                ),
+                (
+                    "type = \"directional\"",
+                    "type = \"spot\"",
+                    "lights[2].type",
+                    "unknown type `spot`",
+                ),
+                (
+                    "transform = { scale",
+                    "transform = { skew = 1, scale",
+                    "shapes[2].transform",
+                    "unknown field `skew`",
+                ),
+            ],
+        );
     }
 
     /// Input quoted in errors is bounded: a TOML nested 10⁵ deep, a material name of 10⁶
