@@ -2070,7 +2070,8 @@ scale = {env_scale}
 
     /// Values that slipped through: a mirror colour of NaN, η and k of 10³⁰⁰ (glint-brdf's
     /// Fresnel range is every interface's), particles above 2⁵³ (the tree's limit), a
-    /// keyframe repeating another's frame: each an error naming its field.
+    /// keyframe repeating another's frame: each an error naming its field; a footprint_scale
+    /// of 10³⁰⁰ is named in a short message with the range (not 301 digits).
     #[test]
     fn slipped_values_are_named_errors() {
         let fixture = Fixture::new("limits-slipped");
@@ -2132,6 +2133,12 @@ scale = {env_scale}
                     "look_at = [0, 0, 0]\n[[camera.keyframes]]\nframe = 3\n[[camera.keyframes]]\nframe = 1\n[[camera.keyframes]]\nframe = 3.0\n",
                     "camera.keyframes[2].frame",
                     "frame 3 is also camera.keyframes[0]'s",
+                ),
+                (
+                    "max_depth = 3\n",
+                    "max_depth = 3\nfootprint_scale = 1e300\n",
+                    "render.footprint_scale",
+                    "1e300 must be in (0, 1e6] pixels",
                 ),
             ],
         );
