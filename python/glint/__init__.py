@@ -35,29 +35,90 @@ def _rows(name, value, width):
     return array, single
 
 
+#: The whole-number fields and their ranges, for an integer too large to be a double.
+_WHOLE_NUMBERS = {"seed": "[0, 2^64)", "particles": "[1, 2^53]", "pdf_points": "[1, 4096]"}
+
+
 def _finite(name, value):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    """A material number as JSON will carry it: an integer exactly (so that a seed above 2^53
+    is not rounded, and eval refuses a particle count above 2^53 as written), anything else as
+    a float. NumPy scalars are numbers too."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, float, np.integer, np.floating)):
         raise ValueError(f"material.{name} must be a finite number, not {value!r}")
+    if isinstance(value, (int, np.integer)):
+        value = int(value)
+        if -2**64 < value < 2**64:
+            return value
+        try:
+            # Out of every whole-number range; as a double, eval names the range.
+            return float(value)
+        except OverflowError:
+            digits = int(value.bit_length() * math.log10(2)) + 1
+            wanted = (f"a whole number in {_WHOLE_NUMBERS[name]}" if name in _WHOLE_NUMBERS
+                      else "a finite number")
+            raise ValueError(f"material.{name} = an integer of {digits} digits must be "
+                             f"{wanted}") from None
+    value = float(value)
     if not math.isfinite(value):
         raise ValueError(f"material.{name} must be a finite number, not {value}")
-    return int(value) if isinstance(value, (int, np.integer)) else float(value)
+    return value
+
+
+def _name(name, value):
+    """A material field that names something ("beckmann", "exact", …): a string, or any
+    other JSON value, which eval refuses naming the field."""
+    if isinstance(value, (str, np.str_)):
+        return str(value)
+    try:
+        json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError):
+        raise ValueError(f"material.{name} {value!r} is unknown: it must be a string") from None
+    return value
+
+
+def _fresnel(value):
+    """The ``fresnel`` argument as JSON: NumPy scalars and arrays become numbers and lists
+    (each number checked as the material's own are, named by its path)."""
+    if value is None or isinstance(value, (str, np.str_)):
+        return None if value is None else str(value)
+    if not isinstance(value, dict):
+        raise ValueError(f"material.fresnel {value!r} is not valid: use None, \"none\", "
+                         "{\"conductor\": {\"eta\": [r, g, b], \"k\": [r, g, b]}} or "
+                         "{\"dielectric\": {\"eta\": x}}")
+
+    def convert(path, item):
+        if isinstance(item, dict):
+            return {str(k): convert(f"{path}.{k}", v) for k, v in item.items()}
+        if isinstance(item, np.ndarray):
+            item = item.tolist()
+        if isinstance(item, (list, tuple)):
+            return [convert(path, v) for v in item]
+        if isinstance(item, (str, np.str_)) or item is None:
+            return item if item is None else str(item)
+        return _finite(path, item)
+
+    return {str(k): convert(f"fresnel.{k}", v) for k, v in value.items()}
 
 
 class Material:
     """A glint material, built once (a few ms) and reused for any number of queries.
 
-    Parameters have the names, defaults and meaning of ``docs/eval.md``'s material fields:
-    ``distribution`` ("beckmann" or "ggx"), roughness ``alpha`` and ``alpha_y`` (None: the
-    same as ``alpha``), ``particles`` N per unit texture square, ``gamma_deg`` the cone radius
-    γ in degrees, ``epsilon`` of Eq. 10 (0 = exact counts), ``seed`` the particle set,
-    ``fresnel`` (None, ``{"conductor": {"eta": [r, g, b], "k": [r, g, b]}}`` or
-    ``{"dielectric": {"eta": x}}``), ``multinomial`` ("exact" or "normal"),
+    Parameters have the names, defaults, meaning and ranges of ``docs/eval.md``'s material
+    fields: ``distribution`` ("beckmann" or "ggx"), roughness ``alpha`` and ``alpha_y`` in
+    [1e-4, 1] (None: the same as ``alpha``), ``particles`` N per unit texture square (a whole
+    number in [1, 2^53]), ``gamma_deg`` the cone radius γ in degrees ([5.73e-5, 60]),
+    ``epsilon`` of Eq. 10 in [0, 1] (0 = exact counts), ``seed`` the particle set (a whole
+    number in [0, 2^64), taken exactly), ``fresnel`` (None, ``{"conductor": {"eta": [r, g, b],
+    "k": [r, g, b]}}`` or ``{"dielectric": {"eta": x}}``, η in [1e-3, 1e3] and k in [0, 1e3];
+    NumPy scalars and arrays are accepted), ``multinomial`` ("exact" or "normal"),
     ``negligible_count`` (skip queries whose expected count is provably below it; 0 = never),
     and, keyword only, ``expected_footprint_area`` (Eq. 11), ``pdf_quadrature`` (the
     sampler pdf's rule over the cone: "cubature", the default, or "qmc", the paper's) and
-    ``pdf_points`` (its QMC points).
+    ``pdf_points`` (its QMC points, in [1, 4096]).
 
-    Invalid parameters raise ``ValueError`` naming the parameter.
+    Invalid parameters raise ``ValueError`` naming the parameter. A material pickles and
+    copies (it is rebuilt from its parameters, with the same particle set).
     """
 
     def __init__(self, distribution="beckmann", alpha=0.1, alpha_y=None, particles=1e6,
@@ -65,29 +126,35 @@ class Material:
                  negligible_count=0.0, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
                  pdf_points=64):
         spec = {
-            "distribution": distribution,
+            "distribution": _name("distribution", distribution),
             "alpha": _finite("alpha", alpha),
             "particles": _finite("particles", particles),
             "gamma_deg": _finite("gamma_deg", gamma_deg),
             "epsilon": _finite("epsilon", epsilon),
             "seed": _finite("seed", seed),
-            "multinomial": multinomial,
+            "multinomial": _name("multinomial", multinomial),
             "negligible_count": _finite("negligible_count", negligible_count),
             "expected_footprint_area": _finite("expected_footprint_area",
                                                expected_footprint_area),
-            "pdf_quadrature": pdf_quadrature,
+            "pdf_quadrature": _name("pdf_quadrature", pdf_quadrature),
             "pdf_points": _finite("pdf_points", pdf_points),
         }
         if alpha_y is not None:
             spec["alpha_y"] = _finite("alpha_y", alpha_y)
         if fresnel is not None:
-            spec["fresnel"] = fresnel
-        try:
-            text = json.dumps(spec, allow_nan=False)
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"material.fresnel {fresnel!r} is not valid: {error}") from None
-        self._native = _NativeMaterial(text)
+            spec["fresnel"] = _fresnel(fresnel)
+        self._native = _NativeMaterial(json.dumps(spec, allow_nan=False))
+        self._spec = spec
         self.gray = self._native.gray
+
+    def __reduce__(self):
+        # pickle, copy and deepcopy rebuild the material from its parameters (the native
+        # material is not picklable; building it again gives the same particle set).
+        return (_material_from_spec, (dict(self._spec),))
+
+    def __repr__(self):
+        fields = ", ".join(f"{k}={v!r}" for k, v in self._spec.items())
+        return f"glint.Material({fields})"
 
     def _colour(self, columns, prefix):
         if self.gray:
@@ -106,7 +173,7 @@ class Material:
 
         ``wi``, ``wo``: (n, 3) directions in the local frame (z = normal), normalized on input;
         ``uv``, ``duv_dx``, ``duv_dy``: (n, 2), the footprint
-        {uv + s·duv_dx + t·duv_dy : s, t ∈ [−½, ½]}. Returns a dict of arrays: ``count``,
+        {uv + s·duv_dx + t·duv_dy : s, t ∈ [−½, ½]}, each edge component within ±1e15. Returns a dict of arrays: ``count``,
         ``expected_count``, ``d_hat``, ``f_hat``, ``f_smooth`` ((n,) when F is grey, else
         (n, 3)), ``nodes_visited``, ``negligible_bound`` (NaN where the query was traversed)
         and ``error`` (empty where the row is valid, else the message ``eval`` gives; the
@@ -155,3 +222,9 @@ class Material:
         wo, _ = _rows("wo", wo, 3)
         p = self._native.pdf(wi, wo)["pdf"]
         return p[0] if single else p
+
+
+def _material_from_spec(spec):
+    """The material of ``Material.__reduce__``: ``spec`` is its JSON object."""
+    spec = dict(spec)
+    return Material(**spec)

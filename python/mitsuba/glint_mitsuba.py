@@ -37,6 +37,9 @@ if not mi.variant().startswith("scalar_") or "rgb" not in mi.variant():
     raise ImportError(f"glint_mitsuba supports the scalar_rgb variant, not {mi.variant()}")
 
 _BELOW_ONE = math.nextafter(1.0, 0.0)
+_MAX_DOUBLE = float(np.finfo(np.float64).max)
+#: The largest ``footprint_scale``, as glint-tracer's (a footprint of 10⁶ pixels).
+_MAX_FOOTPRINT_SCALE = 1e6
 _FLAGS = (mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
           | mi.BSDFFlags.SpatiallyVarying)
 
@@ -45,13 +48,26 @@ def _vec(v):
     return np.array([v[0], v[1], v[2]], dtype=np.float64)
 
 
+def _scale(name, value, lowest, highest, zero=False):
+    """A positive scale in (lowest, highest] (or 0 when ``zero``), else ``ValueError`` naming
+    it, as the package names a material parameter."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a number, not {value!r}")
+    value = float(value)
+    if not ((zero and value == 0.0) or lowest < value <= highest):
+        allowed = f"{'0 or ' if zero else ''}in ({lowest:g}, {highest:g}]"
+        raise ValueError(f"{name} = {value!r} must be {allowed}")
+    return value
+
+
 class GlintBSDF(mi.BSDF):
     """The discrete multiscale BRDF (f̂, Eq. 5) of ``glint.Material``.
 
     Parameters: ``distribution`` ("beckmann"), ``alpha`` (0.1), ``alpha_y`` (= alpha),
     ``particles`` (1e6), ``gamma_deg`` (1), ``epsilon`` (0.1), ``seed`` (0), ``multinomial``
-    ("exact"), ``negligible_count`` (0): as ``glint.Material``; ``uv_scale`` (1): texture
-    repetitions per unit of the shape's (u, v), as in the scene files. F = 1 (no Fresnel).
+    ("exact"), ``negligible_count`` (0): as ``glint.Material``, which checks them (an invalid
+    one raises ``ValueError`` naming it); ``uv_scale`` (1): texture repetitions per unit of
+    the shape's (u, v), positive and finite, as in the scene files. F = 1 (no Fresnel).
 
     Sampling: Mitsuba gives three numbers (``sample1``, ``sample2``); the glint sampler takes
     them in its three-number form u = (sample2.x, sample2.y, sample1): the 2-D sample chooses
@@ -67,15 +83,16 @@ class GlintBSDF(mi.BSDF):
         def get(name, default):
             return props.get(name, default) if name in props else default
 
-        self.uv_scale = float(get("uv_scale", 1.0))
-        alpha_y = get("alpha_y", None)
+        # As in scene files: positive and finite (the glint-tracer's `uv_scale`).
+        self.uv_scale = _scale("glint.uv_scale", get("uv_scale", 1.0), 0.0, _MAX_DOUBLE)
+        # The package checks every material parameter, naming it (a seed of 1.7 is an error,
+        # not 1).
         self.params = dict(
-            distribution=get("distribution", "beckmann"), alpha=float(get("alpha", 0.1)),
-            alpha_y=None if alpha_y is None else float(alpha_y),
-            particles=float(get("particles", 1e6)), gamma_deg=float(get("gamma_deg", 1.0)),
-            epsilon=float(get("epsilon", 0.1)), seed=int(get("seed", 0)),
+            distribution=get("distribution", "beckmann"), alpha=get("alpha", 0.1),
+            alpha_y=get("alpha_y", None), particles=get("particles", 1e6),
+            gamma_deg=get("gamma_deg", 1.0), epsilon=get("epsilon", 0.1), seed=get("seed", 0),
             multinomial=get("multinomial", "exact"),
-            negligible_count=float(get("negligible_count", 0.0)))
+            negligible_count=get("negligible_count", 0.0))
         self.material = glint.Material(**self.params)
         self.m_components = [_FLAGS]
         self.m_flags = _FLAGS
@@ -91,13 +108,18 @@ class GlintBSDF(mi.BSDF):
         return np.array([si.uv[0], si.uv[1]]) * s, dx * s, dy * s
 
     def brdf(self, si, wo):
-        """f (no cosine) at (si.wi, wo) as a float: f̂ with si's footprint, f_smooth without."""
+        """f (no cosine) at (si.wi, wo) as a float: f̂ with si's footprint, f_smooth without,
+        and also where the package refuses the footprint (an edge beyond ±1e15 texture units,
+        where glint-tracer shades the smooth limit too); 0 where it refuses the directions.
+        A row the package reports as an error never becomes a NaN pixel."""
         wi, wo = _vec(si.wi), _vec(wo)
         fp = self.footprint(si)
-        if fp is None:
-            r = self.material.eval(wi, wo, [0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
-            return float(r["f_smooth"])
-        return float(self.material.eval(wi, wo, *fp)["f_hat"])
+        if fp is not None:
+            r = self.material.eval(wi, wo, *fp)
+            if r["error"] == "":
+                return float(r["f_hat"])
+        r = self.material.eval(wi, wo, [0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
+        return float(r["f_smooth"]) if r["error"] == "" else 0.0
 
     def _active(self, ctx, si, active):
         return bool(active) and ctx.is_enabled(mi.BSDFFlags.GlossyReflection, 0) and si.wi[2] > 0
@@ -153,15 +175,19 @@ class GlintDirectIntegrator(mi.SamplingIntegrator):
     (power heuristic), as glint-tracer's ``direct`` integrator with ``light_strategy = "mis"``.
 
     At the first hit it computes the uv partials from the camera's ray differential, rescaled
-    to span ``footprint_scale`` pixels (default 1), so glint BSDFs see the pixel footprint;
-    ``footprint_scale = 0`` computes none, so glint BSDFs use their smooth limit everywhere.
+    to span ``footprint_scale`` pixels (default 1; at most 10⁶, as in glint-tracer), so glint
+    BSDFs see the pixel footprint; ``footprint_scale = 0`` computes none, so glint BSDFs use
+    their smooth limit everywhere (glint-tracer's ``glint_footprints = "never"``). NaN,
+    negative and larger values are refused, naming the parameter.
     ``hide_emitters`` (false) hides directly visible emitters.
     """
 
     def __init__(self, props):
         super().__init__(props)
-        self.footprint_scale = float(props.get("footprint_scale", 1.0)
-                                     if "footprint_scale" in props else 1.0)
+        self.footprint_scale = _scale(
+            "glint_direct.footprint_scale",
+            props.get("footprint_scale", 1.0) if "footprint_scale" in props else 1.0,
+            0.0, _MAX_FOOTPRINT_SCALE, zero=True)
         self.hide = bool(props.get("hide_emitters", False)
                          if "hide_emitters" in props else False)
 

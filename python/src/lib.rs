@@ -8,6 +8,12 @@
 //!
 //! Rows are answered in parallel (rayon, one query scratch per worker) with the GIL released;
 //! each row's answer depends only on the row, so the thread count never changes a result.
+//! The worker threads belong to a pool of this process ([`process_pool`]), never rayon's
+//! global pool: a child forked after the parent used the package (multiprocessing's default
+//! on Linux) has none of the parent's threads, and a pool built before the fork would wait
+//! for them forever.
+
+use std::sync::{Arc, Mutex};
 
 use glint_brdf::QueryScratch;
 use glint_eval::{EvalMaterial, MaterialSpec, uniforms_from_three};
@@ -53,21 +59,59 @@ fn same_length(n: usize, others: &[(usize, &str)]) -> PyResult<()> {
     Ok(())
 }
 
-/// Answers every row in parallel, one scratch per task.
+/// The worker pool of this process: built on first use, and built again in a forked child
+/// (whose process id differs from the one that built it). A child cannot use its parent's
+/// pool: fork copies the pool's state but none of its threads. The old pool is leaked, not
+/// dropped, since dropping it would signal threads (and perhaps a lock one held at the fork)
+/// that do not exist in the child; it costs one pool per fork.
+///
+/// Called with the GIL held: `os.fork` holds the GIL too, so no other thread of this module
+/// is inside the lock when a process forks.
+fn process_pool() -> PyResult<Arc<rayon::ThreadPool>> {
+    static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+    let pid = std::process::id();
+    let mut pool = POOL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    match pool.as_ref() {
+        Some((built_in, current)) if *built_in == pid => Ok(Arc::clone(current)),
+        _ => {
+            let built = Arc::new(
+                rayon::ThreadPoolBuilder::new()
+                    .thread_name(|i| format!("glint-{i}"))
+                    .build()
+                    .map_err(|e| {
+                        pyo3::exceptions::PyRuntimeError::new_err(format!(
+                            "cannot start glint's worker threads: {e}"
+                        ))
+                    })?,
+            );
+            if let Some(inherited) = pool.replace((pid, Arc::clone(&built))) {
+                std::mem::forget(inherited);
+            }
+            Ok(built)
+        }
+    }
+}
+
+/// Answers every row in parallel on `pool`, one scratch per task.
 fn answer_rows<I: Sync, O: Send>(
+    pool: &rayon::ThreadPool,
     inputs: &[I],
-    answer: impl Fn(&mut QueryScratch, &I) -> O + Sync,
+    answer: impl Fn(&mut QueryScratch, &I) -> O + Sync + Send,
 ) -> Vec<O> {
-    inputs
-        .par_chunks(ROWS_PER_TASK)
-        .flat_map_iter(|chunk| {
-            let mut scratch = QueryScratch::new();
-            chunk
-                .iter()
-                .map(|input| answer(&mut scratch, input))
-                .collect::<Vec<_>>()
-        })
-        .collect()
+    pool.install(|| {
+        inputs
+            .par_chunks(ROWS_PER_TASK)
+            .flat_map_iter(|chunk| {
+                let mut scratch = QueryScratch::new();
+                chunk
+                    .iter()
+                    .map(|input| answer(&mut scratch, input))
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    })
 }
 
 /// The columns of n answers of K numbers each (NaN where a row failed) and the rows' error
@@ -142,8 +186,9 @@ impl Material {
         )?;
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
+        let pool = process_pool()?;
         let answers = py.detach(|| {
-            answer_rows(&indices, |scratch, &i| {
+            answer_rows(&pool, &indices, |scratch, &i| {
                 material
                     .eval(scratch, wi[i], wo[i], uv[i], dx[i], dy[i])
                     .map(|e| {
@@ -211,8 +256,9 @@ impl Material {
         same_length(wi.len(), &[(u.len(), "u")])?;
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
+        let pool = process_pool()?;
         let answers = py.detach(|| {
-            answer_rows(&indices, |_, &i| {
+            answer_rows(&pool, &indices, |_, &i| {
                 let u = u[i].clone()?;
                 Ok(match material.sample(wi[i], u)? {
                     Some(s) => [
@@ -242,8 +288,12 @@ impl Material {
         same_length(wi.len(), &[(wo.len(), "wo")])?;
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
-        let answers =
-            py.detach(|| answer_rows(&indices, |_, &i| material.pdf(wi[i], wo[i]).map(|p| [p])));
+        let pool = process_pool()?;
+        let answers = py.detach(|| {
+            answer_rows(&pool, &indices, |_, &i| {
+                material.pdf(wi[i], wo[i]).map(|p| [p])
+            })
+        });
         columns(py, ["pdf"], answers)
     }
 }

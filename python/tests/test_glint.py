@@ -216,3 +216,144 @@ def test_batches_are_deterministic_in_any_split_and_thread():
     for t in threads:
         t.join()
     assert all(_same(r["f_hat"], whole["f_hat"]) for r in results)
+
+
+def _fork_child(material, rows, connection):
+    """In a forked child: the material's answers to ``rows``, and a material built there."""
+    try:
+        r = material.eval(*rows)
+        fresh = glint.Material(**MATERIALS[0]).eval(*rows)
+        connection.send((r["count"], r["f_hat"], r["error"].tolist(), fresh["count"]))
+    finally:
+        connection.close()
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # Python 3.12 warns of fork
+def test_a_forked_child_answers_large_batches():
+    """A process that used the package and then forks (multiprocessing's default on Linux)
+    answers batches of more than 256 rows (several parallel tasks) in the child, as the
+    parent does. The parent's worker threads do not survive the fork; the child builds its
+    own."""
+    import multiprocessing
+
+    m = glint.Material(**MATERIALS[0])
+    wi, wo, uv, dx, dy, _ = _queries(5000, seed=21)
+    rows = (wi, wo, uv, dx, dy)
+    parent = m.eval(*rows)  # the parent's pool exists and has worked
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    child = context.Process(target=_fork_child, args=(m, rows, sender))
+    child.start()
+    sender.close()
+    try:
+        assert receiver.poll(120), "the forked child did not answer within 120 s (deadlock?)"
+        count, f_hat, errors, fresh_count = receiver.recv()
+    finally:
+        child.join(10)
+        if child.is_alive():
+            child.kill()
+            child.join()
+    assert child.exitcode == 0
+    assert _same(count, parent["count"]) and _same(f_hat, parent["f_hat"])
+    assert errors == parent["error"].tolist()
+    assert _same(fresh_count, parent["count"])
+    # The parent still answers after its child is gone.
+    assert _same(m.eval(*rows)["count"], parent["count"])
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(distribution=b"beckmann"), "material.distribution"),
+    (dict(distribution=object()), "material.distribution"),
+    (dict(multinomial=object()), "material.multinomial"),
+    (dict(pdf_quadrature={1, 2}), "material.pdf_quadrature"),
+    (dict(distribution=3), "material.distribution"),
+    (dict(seed=10**400), r"material\.seed = an integer of 401 digits must be a whole number "
+                         r"in \[0, 2\^64\)"),
+    (dict(seed=2**64), r"material\.seed = 1\.8446744073709552e19 must be a whole number in "
+                       r"\[0, 2\^64\)"),
+    (dict(seed=1.7), r"material\.seed = 1\.7 must be a whole number"),
+    (dict(particles=2**53 + 1), r"material\.particles = 9007199254740993 must be a whole"),
+    (dict(alpha=10**400), r"material\.alpha = an integer of 401 digits must be a finite"),
+    (dict(fresnel={"conductor": {"eta": [1e300, 1, 1], "k": [0, 0, 0]}}),
+     r"material\.fresnel\.conductor\.eta: Fresnel eta = 1e300 is invalid: eta must be in "
+     r"\[1e-3, 1e3\] and k in \[0, 1e3\]"),
+    (dict(fresnel={"conductor": {"eta": [1, 1, 1], "k": [0, 0, 0], "kk": 1}}),
+     r"unknown material\.fresnel\.conductor field `kk`"),
+    (dict(fresnel={"dielectric": {"eta": np.float32("nan")}}),
+     r"material\.fresnel\.dielectric\.eta must be a finite number"),
+    (dict(fresnel=5), r"material\.fresnel 5 is not valid"),
+])
+def test_bad_parameters_name_the_right_field(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        glint.Material(**kwargs)
+
+
+def test_integers_are_exact_as_in_eval():
+    """Seeds are taken exactly (2^53 + 1 is not 2^53) and agree with `cargo xtask eval` given
+    the same integer literal; NumPy integers are integers."""
+    wi, wo, uv, dx, dy, _ = _queries(200, seed=5)
+    counts = {}
+    for seed in (2**53, 2**53 + 1, 2**64 - 1, np.uint64(2**64 - 1)):
+        m = glint.Material(particles=1e9, seed=seed)
+        counts[int(seed)] = m.eval(wi, wo, uv, dx, dy)["count"]
+    assert not _same(counts[2**53], counts[2**53 + 1])
+    line = json.dumps({"op": "eval", "material": dict(particles=1e9, seed=2**53 + 1),
+                       "wi": wi[0].tolist(), "wo": wo[0].tolist(), "uv": uv[0].tolist(),
+                       "duv_dx": dx[0].tolist(), "duv_dy": dy[0].tolist()})
+    line = line.replace('"particles"', '"distribution": "beckmann", "alpha": 0.1, '
+                        '"gamma_deg": 1.0, "particles"')
+    assert _same(_xtask_eval([line])[0]["count"], counts[2**53 + 1][0])
+
+
+def test_numpy_numbers_inside_fresnel():
+    plain = glint.Material(**MATERIALS[2])
+    fresnel = {"conductor": {"eta": np.array([0.2, 0.9, 1.1]),
+                             "k": [np.float32(3.9).item(), np.float64(2.4), np.float16(2.2)]}}
+    numpy = glint.Material(**{**MATERIALS[2], "fresnel": fresnel})
+    wi, wo, uv, dx, dy, _ = _queries(50, seed=3)
+    a, b = plain.eval(wi, wo, uv, dx, dy), numpy.eval(wi, wo, uv, dx, dy)
+    assert np.allclose(a["f_hat"], b["f_hat"], rtol=1e-3) and _same(a["count"], b["count"])
+    exact = glint.Material(**{**MATERIALS[2], "fresnel": {"conductor": {
+        "eta": np.array([0.2, 0.9, 1.1]), "k": np.array([3.9, 2.4, 2.2])}}})
+    assert _same(exact.eval(wi, wo, uv, dx, dy)["f_hat"], a["f_hat"])
+    glint.Material(fresnel={"dielectric": {"eta": np.float64(1.5)}})
+
+
+@pytest.mark.parametrize("index", range(len(MATERIALS)))
+def test_materials_pickle_and_copy(index):
+    """pickle, copy and deepcopy rebuild a material from its parameters: the same answers,
+    bit for bit."""
+    import copy
+    import pickle
+
+    m = glint.Material(**MATERIALS[index], pdf_points=32)
+    wi, wo, uv, dx, dy, u = _queries(300, seed=index)
+    expected = m.eval(wi, wo, uv, dx, dy)
+    for other in (pickle.loads(pickle.dumps(m)), copy.copy(m), copy.deepcopy(m)):
+        assert isinstance(other, glint.Material) and other.gray == m.gray
+        r = other.eval(wi, wo, uv, dx, dy)
+        for key in ("count", "f_hat", "f_smooth", "nodes_visited"):
+            assert _same(r[key], expected[key]), key
+        assert _same(other.sample(wi, u)["wo"], m.sample(wi, u)["wo"])
+        assert _same(other.pdf(wi, wo), m.pdf(wi, wo))
+    assert "glint.Material(" in repr(m)
+
+
+def test_extreme_inputs_give_finite_answers_or_named_errors():
+    """The ends of the accepted ranges answer with finite, non-negative numbers; just beyond
+    them, an error naming the field, as `cargo xtask eval` gives it."""
+    for eta, k in ((1e-3, 0.0), (1e3, 1e3), (1.0, 0.0), (1e-3, 1e3)):
+        m = glint.Material(alpha=0.3, particles=1e9,
+                           fresnel={"conductor": {"eta": [eta] * 3, "k": [k] * 3}})
+        wi, wo, uv, dx, dy, _ = _queries(200, seed=8)
+        wi[:20] = [1.0, 0.0, 1e-6]  # grazing
+        r = m.eval(wi, wo, uv, dx, dy)
+        for key in ("f_hat", "f_smooth", "count"):
+            assert np.all(np.isfinite(r[key]) & (r[key] >= 0)), (eta, k, key)
+    m = glint.Material()
+    edge = 1e15
+    r = m.eval([[0, 0, 1]] * 3, [[0.1, 0, 0.99]] * 3, [[0.3, 0.4]] * 3,
+               [[edge, 0], [1e300, 0], [1e154, 0]], [[0, edge], [0, 1e300], [0, 1e154]])
+    assert r["error"][0] == "" and np.isfinite(r["count"][0]) and r["count"][0] > 0
+    assert r["error"][1] == "duv_dx must hold numbers within ±1e15, not [1e300, 0.0]"
+    assert r["error"][2].startswith("duv_dx must hold numbers within ±1e15")

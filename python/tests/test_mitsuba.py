@@ -220,3 +220,44 @@ def test_render_script_writes_an_image(tmp_path):
     assert out.stat().st_size > 0
     image = np.array(mi.Bitmap(str(out)))
     assert image.shape[:2] == (9, 16) and image.max() > 0
+
+
+@pytest.mark.parametrize("plugin, name, value", [
+    ("glint", "uv_scale", math.nan),
+    ("glint", "uv_scale", 0.0),
+    ("glint", "uv_scale", -1.0),
+    ("glint", "uv_scale", math.inf),
+    ("glint", "seed", 1.7),
+    ("glint", "alpha", math.nan),
+    ("glint", "particles", 0.5),
+    ("glint_direct", "footprint_scale", math.nan),
+    ("glint_direct", "footprint_scale", -1.0),
+    ("glint_direct", "footprint_scale", 1e300),
+])
+def test_plugins_refuse_bad_parameters_naming_them(plugin, name, value):
+    """As the package (and glint-tracer's scene files): an error naming the parameter, never
+    NaN pixels or a silently rounded seed."""
+    with pytest.raises(Exception, match=rf"ValueError: \S*{name}"):
+        mi.load_dict({"type": plugin, name: value})
+
+
+def test_rows_the_package_refuses_never_become_nan():
+    """A footprint the package refuses (edges beyond ±1e15 particle squares: uv_scale = 1e300)
+    shades the smooth limit, as glint-tracer does; a direction it refuses shades 0."""
+    bsdf = mi.load_dict({"type": "glint", "uv_scale": 1e300, "particles": 1e9})
+    reference = glint.Material(particles=1e9)
+    si = mi.SurfaceInteraction3f()
+    si.wi = mi.Vector3f(0.3, 0.0, 0.954)
+    si.uv = mi.Point2f(0.3, 0.4)
+    si.duv_dx, si.duv_dy = mi.Vector2f(1e-3, 0.0), mi.Vector2f(0.0, 1e-3)
+    wo = mi.Vector3f(-0.3, 0.01, 0.954)
+    r = reference.eval(np.array(si.wi, dtype=float), np.array(wo, dtype=float), [0, 0],
+                       [0, 0], [0, 0])
+    f = bsdf.brdf(si, wo)
+    assert math.isfinite(f) and f == r["f_smooth"] and f > 0
+    value = np.array(bsdf.eval(mi.BSDFContext(), si, wo))
+    assert np.all(np.isfinite(value)) and np.all(value > 0)
+    bs, weight = bsdf.sample(mi.BSDFContext(), si, 0.3, mi.Point2f(0.4, 0.6))
+    assert np.all(np.isfinite(np.array(weight)))
+    si.wi = mi.Vector3f(0.0, 0.0, 0.0)
+    assert bsdf.brdf(si, wo) == 0.0

@@ -76,6 +76,9 @@ fn finish(mut bytes: Vec<u8>, length: usize) -> Line {
     Line::Text(bytes)
 }
 
+/// The UTF-8 encoding of U+FEFF, accepted (and dropped) at the start of the input.
+const BYTE_ORDER_MARK: &[u8] = b"\xef\xbb\xbf";
+
 /// Answers every line of `input` on `output`; returns how many lines failed. A line that is
 /// too long or not UTF-8 fails alone: the lines after it are answered.
 pub(crate) fn process(mut input: impl BufRead, output: &mut impl Write) -> anyhow::Result<usize> {
@@ -88,14 +91,20 @@ pub(crate) fn process(mut input: impl BufRead, output: &mut impl Write) -> anyho
             Line::TooLong(length) => Err(format!(
                 "the line is {length} bytes long, more than the {MAX_LINE_BYTES} a request may take"
             )),
-            Line::Text(bytes) => match String::from_utf8(bytes) {
-                Err(e) => Err(format!(
-                    "the line is not UTF-8 text (invalid byte at offset {})",
-                    e.utf8_error().valid_up_to()
-                )),
-                Ok(text) if text.trim().is_empty() => continue,
-                Ok(text) => requests.answer(&text),
-            },
+            Line::Text(mut bytes) => {
+                // A UTF-8 byte-order mark (which some editors write) may open the input.
+                if number == 1 && bytes.starts_with(BYTE_ORDER_MARK) {
+                    bytes.drain(..BYTE_ORDER_MARK.len());
+                }
+                match String::from_utf8(bytes) {
+                    Err(e) => Err(format!(
+                        "the line is not UTF-8 text (invalid byte at offset {})",
+                        e.utf8_error().valid_up_to()
+                    )),
+                    Ok(text) if text.trim().is_empty() => continue,
+                    Ok(text) => requests.answer(&text),
+                }
+            }
         };
         let answer = answer.unwrap_or_else(|message| {
             failed += 1;
@@ -201,6 +210,8 @@ mod tests {
             r#"{{"op": "eval", "material": {MATERIAL}, "uv": [0.3, 0.4], "duv_dx": [0.001, 0.0], "duv_dy": [0.0, 0.001], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
         );
         let with = |field: &str| eval.replace("\"seed\": 7", &format!("\"seed\": 7, {field}"));
+        let fresnel =
+            |value: &str| eval.replace("\"fresnel\": \"none\"", &format!("\"fresnel\": {value}"));
         let cases = [
             (
                 with("\"pdf_points\": -3"),
@@ -228,6 +239,46 @@ mod tests {
                 "material.gamma_deg = 1e-300",
             ),
             (eval.replace("\"op\"", "\"opp\""), "unknown field `opp`"),
+            (
+                fresnel("{\"conductor\": {\"eta\": [1, 1, 1], \"k\": [0, 0, 0], \"kk\": 1}}"),
+                "unknown material.fresnel.conductor field `kk` (known: eta, k)",
+            ),
+            (
+                fresnel("{\"dielectric\": {\"eta\": 1.5, \"k\": 0}}"),
+                "unknown material.fresnel.dielectric field `k` (known: eta)",
+            ),
+            (
+                fresnel("{\"conductor\": {\"eta\": [1e300, 1, 1], \"k\": [1e300, 0, 0]}}"),
+                "material.fresnel.conductor.eta: Fresnel eta = 1e300 is invalid: eta must be in [1e-3, 1e3] and k in [0, 1e3]",
+            ),
+            (
+                fresnel("{\"conductor\": {\"eta\": [1, 1, 1], \"k\": [0, 1001, 0]}}"),
+                "material.fresnel.conductor.k: Fresnel k = 1001.0",
+            ),
+            (
+                fresnel("{\"dielectric\": {\"eta\": 0.0001}}"),
+                "material.fresnel.dielectric.eta: Fresnel eta = 0.0001",
+            ),
+            (
+                eval.replace("\"duv_dx\": [0.001, 0.0]", "\"duv_dx\": [1e300, 0.0]"),
+                "duv_dx must hold numbers within ±1e15, not [1e300, 0.0]",
+            ),
+            (
+                eval.replace("\"duv_dy\": [0.0, 0.001]", "\"duv_dy\": [0.0, -1e154]"),
+                "duv_dy must hold numbers within ±1e15",
+            ),
+            (
+                eval.replace("\"particles\": 1e6", "\"particles\": 9007199254740993"),
+                "material.particles = 9007199254740993 must be a whole number in [1, 2^53]",
+            ),
+            (
+                eval.replace("\"seed\": 7", "\"seed\": -1"),
+                "material.seed = -1.0 must be a whole number in [0, 2^64)",
+            ),
+            (
+                eval.replace("\"seed\": 7", "\"seed\": 1.8446744073709552e19"),
+                "material.seed = 1.8446744073709552e19 must be a whole number in [0, 2^64)",
+            ),
             (
                 eval.replace("\"uv\"", "\"colour\": 1, \"uv\""),
                 "unknown field `colour`",
@@ -342,6 +393,84 @@ mod tests {
         let sample = &values[5];
         assert!(sample["wo"].is_null() || sample["pdf"].as_f64().unwrap() > 0.0);
         assert!(values[6]["pdf"].as_f64().unwrap() > 0.0);
+    }
+
+    /// Whole-number fields are read exactly: seeds are every 64-bit number (2⁵³ + 1 is not
+    /// 2⁵³, and u64::MAX is a seed), N = 2⁵³ is the largest count.
+    #[test]
+    fn integers_are_exact() {
+        let line = |seed: &str, particles: &str| {
+            format!(
+                r#"{{"op": "eval", "material": {}, "uv": [0.3, 0.4], "duv_dx": [0.2, 0.0], "duv_dy": [0.0, 0.2], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#,
+                MATERIAL
+                    .replace("\"seed\": 7", &format!("\"seed\": {seed}"))
+                    .replace("\"particles\": 1e6", &format!("\"particles\": {particles}"))
+            )
+        };
+        let lines = vec![
+            line("9007199254740992", "1e6"),
+            line("9007199254740993", "1e6"),
+            line("18446744073709551615", "1e6"),
+            line("7", "9007199254740992"),
+        ];
+        let (values, failed) = run_lines(&lines);
+        assert_eq!(failed, 0, "{values:?}");
+        assert_ne!(values[0]["count"], values[1]["count"], "{values:?}");
+        assert!(values[3]["count"].as_f64().unwrap() > 0.0, "{}", values[3]);
+    }
+
+    /// A sampled direction passed back as `wo` gives the sample's own pdf, bit for bit
+    /// (unit vectors are used as given); a near-unit direction is not normalized again.
+    #[test]
+    fn a_sample_gives_back_its_pdf() {
+        let mut lines = Vec::new();
+        for i in 0..40 {
+            let u = [0.013 * f64::from(i), 0.61, 0.27, 0.9 - 0.02 * f64::from(i)];
+            lines.push(format!(
+                r#"{{"op": "sample", "material": {MATERIAL}, "wi": [0.3, 0.1, 0.9], "u": {u:?}}}"#
+            ));
+        }
+        let (samples, failed) = run_lines(&lines);
+        assert_eq!(failed, 0);
+        let pdfs: Vec<String> = samples
+            .iter()
+            .map(|s| {
+                format!(
+                    r#"{{"op": "pdf", "material": {MATERIAL}, "wi": [0.3, 0.1, 0.9], "wo": {}}}"#,
+                    s["wo"]
+                )
+            })
+            .collect();
+        let (answers, failed) = run_lines(&pdfs);
+        assert_eq!(failed, 0);
+        for (sample, answer) in samples.iter().zip(&answers) {
+            assert_eq!(sample["pdf"], answer["pdf"], "{sample}");
+        }
+    }
+
+    /// A UTF-8 byte-order mark at the start of the input is skipped; anywhere else it is not
+    /// JSON.
+    #[test]
+    fn a_byte_order_mark_may_open_the_input() {
+        let line = format!(
+            r#"{{"op": "pdf", "material": {MATERIAL}, "wi": [0.2, 0.0, 1.0], "wo": [-0.2, 0.0, 1.0]}}"#
+        );
+        let input = format!("\u{feff}{line}\n\u{feff}{line}\n");
+        let mut output = Vec::new();
+        let failed = process(input.as_bytes(), &mut output).unwrap();
+        let values: Vec<Value> = String::from_utf8(output)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(failed, 1, "{values:?}");
+        assert!(values[0]["pdf"].as_f64().unwrap() > 0.0);
+        assert!(
+            values[1]["error"]
+                .as_str()
+                .unwrap()
+                .contains("line 2: invalid JSON")
+        );
     }
 
     #[test]

@@ -1,8 +1,11 @@
 //! `cargo xtask validate`, stability suite: the matrix of numerical extremes through the public API
 //! of glint-brdf (and so glint-tree and glint-sphere): every combination of distribution,
 //! roughness, cone radius, particle count, direction pair and footprint is evaluated, sampled
-//! and given a pdf. A case fails on a panic, a NaN or infinite output, a negative value, a
+//! and given a pdf, each material with one of the Fresnel terms at the ends of the accepted
+//! range (in turn). A case fails on a panic, a NaN or infinite output, a negative value, a
 //! sample below the horizon, or a query that visits more nodes than the budget allows.
+//! Footprints beyond the largest edge, and Fresnel indices beyond their range, must be
+//! refused.
 
 use std::fmt::Write as _;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -10,7 +13,8 @@ use std::time::Instant;
 
 use glam::{DVec2, DVec3};
 use glint_brdf::{
-    Bxdf, DiscreteBrdf, DistributionKind, Footprint, GlintParameters, Microfacet, QueryScratch,
+    Bxdf, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters, Microfacet,
+    QueryScratch, TreeError,
 };
 
 use crate::validate::{Check, parallel_chunks};
@@ -46,6 +50,68 @@ fn particle_counts(quick: bool) -> Vec<u64> {
         vec![1, 1000, 1_000_000_000, 1_000_000_000_000_000]
     }
 }
+
+/// (name, Fresnel term): none, and conductors and dielectrics at the ends of the accepted
+/// range ([`Fresnel::MIN_ETA`], [`Fresnel::MAX_ETA`], [`Fresnel::MAX_K`]), and η = 1, k = 0
+/// (no interface: F = 0 off grazing, where rounding once made it negative). Materials take
+/// them in turn.
+fn fresnels() -> Vec<(&'static str, Fresnel)> {
+    let conductor = |eta: f64, k: f64| Fresnel::Conductor {
+        eta: DVec3::new(eta, 1.0, eta),
+        k: DVec3::new(k, 0.0, k),
+    };
+    vec![
+        ("none", Fresnel::None),
+        (
+            "conductor η = 10⁻³, k = 10³",
+            conductor(Fresnel::MIN_ETA, Fresnel::MAX_K),
+        ),
+        (
+            "conductor η = k = 10³",
+            conductor(Fresnel::MAX_ETA, Fresnel::MAX_K),
+        ),
+        (
+            "conductor η = 10⁻³, k = 0",
+            conductor(Fresnel::MIN_ETA, 0.0),
+        ),
+        ("conductor η = 1, k = 0", conductor(1.0, 0.0)),
+        (
+            "dielectric η = 10³",
+            Fresnel::Dielectric {
+                eta: Fresnel::MAX_ETA,
+            },
+        ),
+        (
+            "dielectric η = 10⁻³",
+            Fresnel::Dielectric {
+                eta: Fresnel::MIN_ETA,
+            },
+        ),
+    ]
+}
+
+/// Indices just beyond the accepted range, and huge ones (10¹⁵⁴ and 10³⁰⁰ gave NaN f̂): each
+/// must be refused.
+fn refused_fresnels() -> Vec<Fresnel> {
+    let conductor = |eta: f64, k: f64| Fresnel::Conductor {
+        eta: DVec3::splat(eta),
+        k: DVec3::splat(k),
+    };
+    vec![
+        conductor(1e300, 1e300),
+        conductor(1e154, 1e154),
+        conductor(Fresnel::MAX_ETA * 1.001, 0.0),
+        conductor(Fresnel::MIN_ETA * 0.999, 0.0),
+        conductor(1.0, Fresnel::MAX_K * 1.001),
+        conductor(1.0, -1e-300),
+        Fresnel::Dielectric { eta: 1e300 },
+        Fresnel::Dielectric { eta: 0.0 },
+    ]
+}
+
+/// Footprint edges beyond [`Footprint::MAX_EDGE`] (their area, or area × N, overflowed: 10³⁰⁰
+/// gave NaN f̂, 10¹⁵⁴ an infinite count): each must be refused.
+const REFUSED_EDGES: [f64; 4] = [Footprint::MAX_EDGE * 1.000_001, 1e154, 1e300, f64::MAX];
 
 /// (name, ω_i, ω_o)
 fn direction_pairs() -> Vec<(&'static str, DVec3, DVec3)> {
@@ -102,6 +168,15 @@ fn footprints() -> Vec<(&'static str, Footprint)> {
             "uv 10⁶ from the origin",
             square(DVec2::new(1e6 + 0.3, -1e6 + 0.7), 1e-3),
         ),
+        (
+            "edges of ±10¹⁵ (the largest), area 2·10³⁰",
+            Footprint::new(
+                DVec2::new(0.4, 0.9),
+                DVec2::new(Footprint::MAX_EDGE, -Footprint::MAX_EDGE),
+                DVec2::new(Footprint::MAX_EDGE, Footprint::MAX_EDGE),
+            )
+            .expect("within the limit"),
+        ),
     ]
 }
 
@@ -119,10 +194,11 @@ fn check_material(
     alpha: (f64, f64),
     gamma_degrees: f64,
     particles: u64,
+    (fresnel_name, fresnel): (&str, Fresnel),
 ) -> Outcome {
     let mut outcome = Outcome::default();
     let label = format!(
-        "{kind:?} α = {alpha:?}, γ = {gamma_degrees}°, N = {particles:.0e}",
+        "{kind:?} α = {alpha:?}, γ = {gamma_degrees}°, N = {particles:.0e}, Fresnel {fresnel_name}",
         particles = particles as f64
     );
     let built = catch_unwind(|| -> Result<DiscreteBrdf, String> {
@@ -130,6 +206,7 @@ fn check_material(
         let mut parameters = GlintParameters::new(distribution);
         parameters.gamma = gamma_degrees.to_radians();
         parameters.particles = particles;
+        parameters.fresnel = fresnel;
         DiscreteBrdf::new(parameters).map_err(|e| e.to_string())
     });
     let brdf = match built {
@@ -224,10 +301,29 @@ pub(crate) fn stability(quick: bool, report: &mut String) -> anyhow::Result<Chec
             }
         }
     }
+    let fresnel_terms = fresnels();
     let outcomes = parallel_chunks(materials.len() as u64, 1, |chunk, _| {
         let (kind, alpha, gamma, particles) = materials[chunk as usize];
-        check_material(kind, alpha, gamma, particles)
+        let fresnel = fresnel_terms[chunk as usize % fresnel_terms.len()];
+        check_material(kind, alpha, gamma, particles, fresnel)
     });
+    let mut refusals = Outcome::default();
+    for edge in REFUSED_EDGES {
+        refusals.cases += 1;
+        let footprint = Footprint::new(DVec2::new(0.3, 0.4), DVec2::new(edge, 0.0), DVec2::Y);
+        if footprint != Err(TreeError::FootprintTooLarge { component: edge }) {
+            refusals
+                .failures
+                .push(format!("a footprint edge of {edge:e} gave {footprint:?}"));
+        }
+    }
+    for fresnel in refused_fresnels() {
+        refusals.cases += 1;
+        if fresnel.validated().is_ok() {
+            refusals.failures.push(format!("{fresnel:?} was accepted"));
+        }
+    }
+    let outcomes: Vec<Outcome> = outcomes.into_iter().chain([refusals]).collect();
     let cases: u64 = outcomes.iter().map(|o| o.cases).sum();
     let failures: Vec<&String> = outcomes.iter().flat_map(|o| &o.failures).collect();
     let max_nodes = outcomes.iter().map(|o| o.max_nodes).max().unwrap_or(0);
@@ -247,7 +343,10 @@ pub(crate) fn stability(quick: bool, report: &mut String) -> anyhow::Result<Chec
          | γ | {} |\n\
          | N | {} |\n\
          | (ω_i, ω_o) | {} |\n\
-         | footprint | {} |\n\n\
+         | footprint | {} |\n\
+         | Fresnel (one per material, in turn) | {} |\n\n\
+         Refused, as they must be: footprint edges of {} (their area or count overflows), \
+         and {} Fresnel terms beyond the accepted range (η in [10⁻³, 10³], k in [0, 10³]).\n\n\
          {cases} cases, {} failures; at most {max_nodes} nodes visited in one query; the \
          slowest case took {:.1} ms.\n",
         alphas(quick)
@@ -275,6 +374,17 @@ pub(crate) fn stability(quick: bool, report: &mut String) -> anyhow::Result<Chec
             .map(|f| f.0)
             .collect::<Vec<_>>()
             .join("; "),
+        fresnel_terms
+            .iter()
+            .map(|f| f.0)
+            .collect::<Vec<_>>()
+            .join("; "),
+        REFUSED_EDGES
+            .iter()
+            .map(|e| format!("{e:e}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        refused_fresnels().len(),
         failures.len(),
         slowest * 1e3
     )?;

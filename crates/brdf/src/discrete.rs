@@ -454,6 +454,56 @@ impl DiscreteBrdf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Bxdf;
+    use glam::DVec2;
+
+    /// Footprints up to the largest edges a footprint may have (±`Footprint::MAX_EDGE`, an area
+    /// of 10³⁰ tiles) give finite, non-negative counts, D̂, f̂ and expectations, the averaged
+    /// f̂ that of one tile; larger edges, whose area or count would overflow, are refused.
+    #[test]
+    fn the_largest_footprints_give_finite_answers() {
+        let distribution = Microfacet::new(crate::DistributionKind::Beckmann, 0.2, 0.2).unwrap();
+        let mut parameters = GlintParameters::new(distribution);
+        parameters.particles = 1 << 53;
+        let brdf = DiscreteBrdf::new(parameters).unwrap();
+        let mut scratch = QueryScratch::new();
+        let (wi, wo) = (DVec3::Z, DVec3::new(0.1, 0.0, 1.0).normalize());
+        let tile = Footprint::new(DVec2::splat(0.5), DVec2::X, DVec2::Y).unwrap();
+        let one_tile = brdf.at(&tile, &mut scratch).evaluate(wi, wo);
+        let edge = Footprint::MAX_EDGE;
+        for (dx, dy) in [
+            (DVec2::new(edge, 0.0), DVec2::new(0.0, edge)),
+            (DVec2::new(-edge, edge), DVec2::new(edge, edge)),
+            (DVec2::new(edge, 1e-300), DVec2::new(1.0, 0.0)),
+        ] {
+            let footprint = Footprint::new(DVec2::new(0.3, 0.4), dx, dy).unwrap();
+            let bxdf = brdf.at(&footprint, &mut scratch);
+            let e = bxdf.evaluate(wi, wo);
+            let values = [e.count, e.d_hat.x, e.f_hat.x, bxdf.expected_count(wi, wo)];
+            assert!(
+                values.iter().all(|v| v.is_finite() && *v >= 0.0),
+                "{dx} {dy}: {e:?}"
+            );
+            assert!(brdf.tree().config().many_tiles.averages(&footprint));
+            if footprint.area() > 1.0 {
+                assert!(e.count > 0.0);
+                let relative = (e.f_hat.x - one_tile.f_hat.x).abs() / one_tile.f_hat.x;
+                assert!(
+                    relative < 1e-12,
+                    "{dx} {dy}: {} against {}",
+                    e.f_hat.x,
+                    one_tile.f_hat.x
+                );
+            }
+            assert!(bxdf.eval(wi, wo).is_finite());
+        }
+        for huge in [edge * 1.000_001, 1e154, 1e300, f64::MAX] {
+            assert_eq!(
+                Footprint::new(DVec2::ZERO, DVec2::new(huge, 0.0), DVec2::new(0.0, 1.0)),
+                Err(glint_tree::TreeError::FootprintTooLarge { component: huge })
+            );
+        }
+    }
 
     #[test]
     fn eq5_factor_matches_its_textbook_form() {

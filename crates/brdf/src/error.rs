@@ -10,8 +10,14 @@ pub enum BrdfError {
         /// The rejected value.
         alpha: f64,
     },
-    /// A Fresnel parameter (η or k) was not finite or not positive (k may be 0).
-    InvalidFresnel,
+    /// A Fresnel parameter is outside its range: η in [10⁻³, 10³], k in [0, 10³]
+    /// ([`crate::Fresnel::MIN_ETA`], [`crate::Fresnel::MAX_ETA`], [`crate::Fresnel::MAX_K`]).
+    InvalidFresnel {
+        /// `"eta"` or `"k"`.
+        parameter: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
     /// The cone radius γ must be in [10⁻⁶ rad, 60°] (below 10⁻⁶ rad, about 0.2 arc seconds, the
     /// conic's solid angle loses its precision).
     InvalidConeRadius {
@@ -51,9 +57,10 @@ impl fmt::Display for BrdfError {
                     "roughness alpha = {alpha:?} is invalid: it must be finite and in [1e-4, 1]"
                 )
             }
-            Self::InvalidFresnel => {
-                write!(f, "Fresnel parameters must be finite, eta > 0 and k >= 0")
-            }
+            Self::InvalidFresnel { parameter, value } => write!(
+                f,
+                "Fresnel {parameter} = {value:?} is invalid: eta must be in [1e-3, 1e3] and k in [0, 1e3]"
+            ),
             Self::InvalidConeRadius { gamma } => write!(
                 f,
                 "cone radius gamma = {gamma:?} rad is invalid: it must be in [1e-6 rad, 60 degrees]"

@@ -34,6 +34,22 @@ pub fn unit_direction(v: DVec3) -> Option<DVec3> {
     Some(v.normalize())
 }
 
+/// A direction as a caller gives it: a vector of unit length to rounding (its squared length
+/// within 4ε of 1) is used as it is, any other finite, non-zero vector is normalized by
+/// [`unit_direction`]; `None` for a zero or non-finite vector. Every interface that takes
+/// directions from another language (glint-eval, and so `cargo xtask eval` and Python; the C
+/// API) goes through it, so that they answer bit for bit alike, and a sampled direction passed
+/// back gives the sample's own pdf (normalizing a unit vector again may move its last bit).
+#[must_use]
+pub fn given_direction(v: DVec3) -> Option<DVec3> {
+    /// A few roundings of a computed unit vector.
+    const UNIT_TOLERANCE: f64 = 4.0 * f64::EPSILON;
+    if v.is_finite() && (v.length_squared() - 1.0).abs() <= UNIT_TOLERANCE {
+        return Some(v);
+    }
+    unit_direction(v)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -51,6 +67,33 @@ mod tests {
         assert_eq!(unit_direction(v), Some(v.normalize()));
         assert_eq!(unit_direction(DVec3::ZERO), None);
         assert_eq!(unit_direction(DVec3::new(f64::NAN, 0.0, 1.0)), None);
+    }
+
+    /// Unit vectors to rounding pass unchanged, even where normalizing would move a bit; any
+    /// other vector is `unit_direction`'s.
+    #[test]
+    fn given_directions_keep_unit_vectors() {
+        let mut moved = 0;
+        for i in 0..1000 {
+            let t = f64::from(i) * 0.01;
+            let unit = DVec3::new(
+                t.sin() * (3.0 * t).cos(),
+                t.sin() * (3.0 * t).sin(),
+                t.cos(),
+            );
+            assert_eq!(given_direction(unit), Some(unit));
+            moved += usize::from(unit.normalize() != unit);
+        }
+        assert!(moved > 0, "the case is not vacuous");
+        for v in [
+            DVec3::new(3.0, 0.0, 4.0),
+            DVec3::new(1e200, 0.0, 1e200),
+            DVec3::new(0.0, 0.0, 1.0 + 1e-14),
+        ] {
+            assert_eq!(given_direction(v), unit_direction(v));
+        }
+        assert_eq!(given_direction(DVec3::ZERO), None);
+        assert_eq!(given_direction(DVec3::new(f64::NAN, 0.0, 1.0)), None);
     }
 
     #[test]

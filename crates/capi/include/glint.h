@@ -32,7 +32,8 @@ typedef enum GlintStatus {
   GLINT_INVALID_PARAMETER = 2,
   /**
    * A query argument is invalid: a direction that is not finite or is zero, a footprint
-   * that is not finite, uniform numbers outside [0, 1).
+   * that is not finite or has an edge component beyond ±1e15, uniform numbers outside
+   * [0, 1).
    */
   GLINT_INVALID_ARGUMENT = 3,
   /**
@@ -135,17 +136,19 @@ typedef struct GlintScratch GlintScratch;
  * | `distribution` | `GLINT_BECKMANN` | a `GlintDistribution` |
  * | `alpha_x`, `alpha_y` | 0.1 | [1e-4, 1] |
  * | `particles` | 1e6 | a whole number in [1, 2^53] |
- * | `gamma_degrees` | 1 | (0, 60] |
- * | `epsilon` | 0.1 | >= 0 (0 = exact counts) |
+ * | `gamma_degrees` | 1 | [5.73e-5, 60] (1e-6 rad to 60 degrees) |
+ * | `epsilon` | 0.1 | [0, 1] (0 = exact counts) |
  * | `seed` | 0 | any |
  * | `fresnel` | `GLINT_FRESNEL_NONE` | a `GlintFresnel` |
- * | `conductor_eta`, `conductor_k` | {1, 1, 1}, {0, 0, 0} | eta > 0, k >= 0 |
- * | `dielectric_eta` | 1.5 | > 0 |
+ * | `conductor_eta`, `conductor_k` | {1, 1, 1}, {0, 0, 0} | eta in [1e-3, 1e3], k in [0, 1e3] |
+ * | `dielectric_eta` | 1.5 | [1e-3, 1e3] |
  * | `multinomial` | `GLINT_MULTINOMIAL_EXACT` | a `GlintMultinomial` |
- * | `expected_footprint_area` | 1e-6 | > 0 |
+ * | `expected_footprint_area` | 1e-6 | finite, > 0 |
  * | `pdf_quadrature` | `GLINT_PDF_CUBATURE` | a `GlintPdfQuadrature` |
  * | `pdf_points` | 64 | 1 to 4096 |
- * | `negligible_count` | 0 | >= 0 (0 = every query traversed) |
+ * | `negligible_count` | 0 | finite, >= 0 (0 = every query traversed) |
+ *
+ * Every range is glint-brdf's, the same in `cargo xtask eval`, Python and scene files.
  */
 typedef struct GlintMaterialParams {
   /**
@@ -219,7 +222,9 @@ typedef struct GlintMaterialParams {
 /**
  * A pixel's texture-space footprint: the parallelogram
  * {uv + s·duv_dx + t·duv_dy : s, t in [-1/2, 1/2]}. The texture repeats; a zero-area
- * footprint is valid and finds nothing.
+ * footprint is valid and finds nothing. Every number must be finite, and each component of
+ * `duv_dx` and `duv_dy` within ±1e15 (the area times N then stays finite); a footprint of
+ * more than 256 tiles of area (or spanning 4096) is answered by its periodic average.
  */
 typedef struct GlintFootprint {
   /**

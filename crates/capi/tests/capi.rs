@@ -517,7 +517,38 @@ fn invalid_parameters_are_named() {
                 conductor_eta: [1.0, -1.0, 1.0],
                 ..defaults
             },
-            "conductor_eta, conductor_k: Fresnel",
+            "conductor_eta: Fresnel eta = -1.0",
+        ),
+        (
+            GlintMaterialParams {
+                fresnel: GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32,
+                conductor_eta: [1e300; 3],
+                conductor_k: [1e300; 3],
+                ..defaults
+            },
+            "conductor_eta: Fresnel eta = 1e300 is invalid: eta must be in [1e-3, 1e3]",
+        ),
+        (
+            GlintMaterialParams {
+                fresnel: GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32,
+                conductor_k: [0.0, 0.0, 1001.0],
+                ..defaults
+            },
+            "conductor_k: Fresnel k = 1001.0",
+        ),
+        (
+            GlintMaterialParams {
+                gamma_degrees: 1e-5,
+                ..defaults
+            },
+            "gamma_degrees: ",
+        ),
+        (
+            GlintMaterialParams {
+                epsilon: 1.5,
+                ..defaults
+            },
+            "epsilon: ",
         ),
         (
             GlintMaterialParams {
@@ -629,6 +660,21 @@ fn invalid_arguments_are_named() {
         f64::NAN.to_bits(),
         "nothing written on failure"
     );
+    // A footprint whose area (or area times N) would overflow is refused, naming it.
+    for huge in [1e154, 1e300, 1.0000001e15] {
+        let footprint = GlintFootprint {
+            duv_dx: [huge, 0.0],
+            duv_dy: [0.0, huge],
+            ..PINNED_FOOTPRINT
+        };
+        let (status, message) = eval(&footprint, wi, wo, &mut e);
+        assert_eq!(status, GLINT_INVALID_ARGUMENT);
+        assert!(
+            message.starts_with("glint_eval: `footprint`: footprint edge component")
+                && message.contains("±1e15"),
+            "{message}"
+        );
+    }
 
     let mut s = empty_sample();
     for (u, name) in [
@@ -947,4 +993,147 @@ fn version_is_the_package_version() {
     // SAFETY: a static NUL-terminated string.
     let version = unsafe { CStr::from_ptr(glint_version()) };
     assert_eq!(version.to_str().unwrap(), env!("CARGO_PKG_VERSION"));
+}
+
+/// The C API answers as glint-eval (and so `cargo xtask eval` and Python) does, bit for bit,
+/// for the same input: directions of unit length to rounding (each side of 1 by a few ulps,
+/// where normalizing again would move the last bits), far from unit, and the extremes of the
+/// accepted ranges (η, k at their limits, a footprint edge at ±1e15).
+#[test]
+fn answers_are_glint_evals_bit_for_bit() {
+    use glint_eval::{FresnelSpec, MaterialSpec};
+    let materials = [
+        (
+            default_params(),
+            MaterialSpec::new("beckmann", 0.1, 1e6, 1.0),
+        ),
+        (
+            GlintMaterialParams {
+                fresnel: GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32,
+                conductor_eta: [1e-3, 1.0, 1e3],
+                conductor_k: [1e3, 0.0, 1e3],
+                particles: 1e9,
+                ..default_params()
+            },
+            MaterialSpec {
+                fresnel: FresnelSpec::Conductor {
+                    eta: [1e-3, 1.0, 1e3],
+                    k: [1e3, 0.0, 1e3],
+                },
+                ..MaterialSpec::new("beckmann", 0.1, 1e9, 1.0)
+            },
+        ),
+    ];
+    let mut scratch = QueryScratch::new();
+    // Lengths 1 + k·ε: a few roundings from unit, or far from it.
+    let nudged = |v: [f64; 3], k: f64| v.map(|x| x * (1.0 + k * f64::EPSILON));
+    let mut unchanged = 0;
+    for (params, spec) in materials {
+        let handles = Handles::new(&params);
+        let material = spec.build().unwrap();
+        for (i, theta) in [0.0, 0.3, 0.9, 1.4, 1.56].into_iter().enumerate() {
+            let wi = direction(theta, 0.2 + f64::from(i as u32));
+            let wo = direction(theta * 0.9, 3.3 + f64::from(i as u32));
+            for k in [-2.0, -0.5, 0.0, 0.5, 1.0, 2.0, 1e12] {
+                let (wi, wo) = (nudged(wi, k), nudged(wo, -k));
+                for footprint in [
+                    PINNED_FOOTPRINT,
+                    GlintFootprint {
+                        uv: [0.4, 0.2],
+                        duv_dx: [1e15, 3.0],
+                        duv_dy: [-2.0, 1e15],
+                    },
+                ] {
+                    let c = handles.eval(&footprint, wi, wo);
+                    let e = material
+                        .eval(
+                            &mut scratch,
+                            wi,
+                            wo,
+                            footprint.uv,
+                            footprint.duv_dx,
+                            footprint.duv_dy,
+                        )
+                        .unwrap();
+                    assert_eq!(bits(&c.f_hat), bits(&e.f_hat.to_array()), "{wi:?} {wo:?}");
+                    assert_eq!(c.count.to_bits(), e.count.to_bits());
+                    assert_eq!(c.d_hat[0].to_bits(), e.d_hat.to_bits());
+                    assert!(
+                        c.f_hat
+                            .iter()
+                            .chain([&c.count])
+                            .all(|x| x.is_finite() && *x >= 0.0),
+                        "{c:?}"
+                    );
+                    unchanged += usize::from(c.count > 0.0);
+                }
+                let s = handles.sample(None, wi, [0.3, 0.6, 0.2, 0.9]);
+                let e = material.sample(wi, [0.3, 0.6, 0.2, 0.9]).unwrap();
+                match e {
+                    Some(e) => {
+                        assert_eq!(bits(&s.wo), bits(&e.wo.to_array()));
+                        assert_eq!(s.pdf.to_bits(), e.pdf.to_bits());
+                        assert_eq!(bits(&s.weight), bits(&e.weight.to_array()));
+                    }
+                    None => assert_eq!(s.valid, 0),
+                }
+                let mut pdf = f64::NAN;
+                // SAFETY: a live material, readable arrays, a writable double.
+                let status =
+                    unsafe { glint_pdf(handles.material, wi.as_ptr(), wo.as_ptr(), &mut pdf) };
+                assert_eq!(status, GLINT_OK);
+                assert_eq!(pdf.to_bits(), material.pdf(wi, wo).unwrap().to_bits());
+            }
+        }
+    }
+    assert!(unchanged > 0, "some queries find particles");
+}
+
+/// The ends of the ranges `GlintMaterialParams` documents are accepted (the invalid values
+/// just beyond them are in `invalid_parameters_are_named`).
+#[test]
+fn documented_ranges_are_accepted_at_their_ends() {
+    let defaults = default_params();
+    let conductor = |eta: f64, k: f64| GlintMaterialParams {
+        fresnel: GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32,
+        conductor_eta: [eta; 3],
+        conductor_k: [k; 3],
+        ..defaults
+    };
+    for params in [
+        GlintMaterialParams {
+            gamma_degrees: 5.73e-5,
+            ..defaults
+        },
+        GlintMaterialParams {
+            gamma_degrees: 60.0,
+            ..defaults
+        },
+        GlintMaterialParams {
+            epsilon: 0.0,
+            ..defaults
+        },
+        GlintMaterialParams {
+            epsilon: 1.0,
+            ..defaults
+        },
+        GlintMaterialParams {
+            seed: u64::MAX,
+            ..defaults
+        },
+        conductor(1e-3, 0.0),
+        conductor(1e3, 1e3),
+        GlintMaterialParams {
+            fresnel: GlintFresnel::GLINT_FRESNEL_DIELECTRIC as u32,
+            dielectric_eta: 1e3,
+            ..defaults
+        },
+    ] {
+        let handles = Handles::new(&params);
+        let e = handles.eval(&PINNED_FOOTPRINT, [0.0, 0.0, 1.0], [0.1, 0.0, 0.99]);
+        assert!(
+            e.f_hat.iter().all(|f| f.is_finite() && *f >= 0.0),
+            "{params:?}: {e:?}"
+        );
+    }
 }

@@ -26,7 +26,7 @@ fn main() -> Result<(), String> {
         .collect();
     let queries: Vec<&[f64]> = numbers.chunks_exact(12).collect();
     let material = MaterialSpec {
-        seed: Some(7.0),
+        seed: Some(7),
         ..MaterialSpec::new("beckmann", 0.1, 1e9, 1.0)
     }
     .build()?;

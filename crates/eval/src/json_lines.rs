@@ -6,23 +6,39 @@ use std::collections::HashMap;
 use glint_brdf::{DVec3, QueryScratch};
 use serde_json::{Map, Value, json};
 
-use crate::material::{MaterialSpec, numbers_in};
+use crate::material::{MaterialSpec, known_fields, numbers_in};
 use crate::request::{EvalMaterial, uniforms_from_three};
 
-/// How many built materials [`JsonLines`] keeps: a material holds its count tree's caches
-/// (about 2 MB), so the cache stays under about 130 MB whatever the input. Beyond it the least
-/// recently used material is dropped and rebuilt (a few ms) if it comes back.
+/// How many built materials [`JsonLines`] keeps at most. Beyond it, or beyond
+/// [`MATERIAL_CACHE_BYTES`], the least recently used material is dropped and rebuilt (a few ms,
+/// up to 0.3 s for the most anisotropic) if it comes back.
 pub const MATERIAL_CACHE_SIZE: usize = 64;
+
+/// The most memory the cached materials may take together, by [`material_bytes`]'s estimate:
+/// 64 ordinary materials (about 2 MB each) fit; of the most anisotropic (α = 10⁻⁴ against
+/// α_y = 1, about 50 MB each), five.
+pub const MATERIAL_CACHE_BYTES: usize = 256 << 20;
+
+/// A built material's memory, estimated from its Alg. 2 table: 1.6 MB plus 530 bytes per
+/// entry (the table, the directional split of each entry's cell, its descent steps). Measured
+/// as the peak resident memory of `cargo xtask eval` on one line per material, less that of
+/// the process: Beckmann α = 0.1, 684 entries, 2.0 MB; α = 10⁻³ and α_y = 0.3, 13 380 entries,
+/// 6.6 MB; α = 10⁻⁴ and α_y = 1, 78 560 entries, 43 MB; GGX at those, 97 472 entries, 52 MB
+/// (`docs/eval.md`, "Limits", gives the command).
+fn material_bytes(material: &EvalMaterial) -> usize {
+    (1_600_000 + 530 * material.brdf().tree().quadrature().len()).min(MATERIAL_CACHE_BYTES)
+}
 
 /// The fields a request may hold.
 const REQUEST_FIELDS: [&str; 8] = ["op", "material", "wi", "wo", "uv", "duv_dx", "duv_dy", "u"];
 
 /// Answers JSON requests, building each distinct `material` object once while it stays among
-/// the [`MATERIAL_CACHE_SIZE`] most recently used.
+/// the most recently used ([`MATERIAL_CACHE_SIZE`], [`MATERIAL_CACHE_BYTES`]).
 #[derive(Debug, Default)]
 pub struct JsonLines {
-    /// Built materials by their JSON text, with the request number that last used each.
-    materials: HashMap<String, (EvalMaterial, u64)>,
+    /// Built materials by their JSON text, with the request number that last used each and
+    /// their estimated memory.
+    materials: HashMap<String, Cached>,
     requests: u64,
     scratch: QueryScratch,
 }
@@ -38,6 +54,12 @@ impl JsonLines {
     #[must_use]
     pub fn cached_materials(&self) -> usize {
         self.materials.len()
+    }
+
+    /// The estimated memory of the cached materials (at most [`MATERIAL_CACHE_BYTES`]).
+    #[must_use]
+    pub fn cached_bytes(&self) -> usize {
+        self.materials.values().map(|c| c.bytes).sum()
     }
 
     /// The answer to one request line.
@@ -58,15 +80,7 @@ impl JsonLines {
         if !matches!(op, "eval" | "sample" | "pdf") {
             return Err(format!("unknown op `{op}`: use eval, sample or pdf"));
         }
-        if let Some(unknown) = request
-            .keys()
-            .find(|k| !REQUEST_FIELDS.contains(&k.as_str()))
-        {
-            return Err(format!(
-                "unknown field `{unknown}` (known: {})",
-                REQUEST_FIELDS.join(", ")
-            ));
-        }
+        known_fields(request, &REQUEST_FIELDS, "field")?;
         let material = request.get("material").ok_or("missing field `material`")?;
         let key = material.to_string();
         self.requests += 1;
@@ -129,29 +143,51 @@ fn numbers<const N: usize>(request: &Map<String, Value>, key: &str) -> Result<[f
     numbers_in::<N>(request, key, key)
 }
 
+/// A built material in the cache.
+#[derive(Debug)]
+struct Cached {
+    material: EvalMaterial,
+    /// The request number that last used it.
+    used: u64,
+    /// [`material_bytes`].
+    bytes: usize,
+}
+
 /// The material of `key` (its JSON text) from `materials`, built if it is not there, marked as
-/// used by request `now`; the least recently used one makes room when the cache is full.
+/// used by request `now`; the least recently used ones make room when the cache is full (in
+/// number or in memory).
 fn cached<'a>(
-    materials: &'a mut HashMap<String, (EvalMaterial, u64)>,
+    materials: &'a mut HashMap<String, Cached>,
     now: u64,
     key: String,
     material: &Value,
 ) -> Result<&'a EvalMaterial, String> {
     if !materials.contains_key(&key) {
         let built = MaterialSpec::from_json(material)?.build()?;
-        if materials.len() >= MATERIAL_CACHE_SIZE
-            && let Some(oldest) = materials
+        let bytes = material_bytes(&built);
+        let mut total: usize = materials.values().map(|c| c.bytes).sum();
+        while materials.len() >= MATERIAL_CACHE_SIZE || total + bytes > MATERIAL_CACHE_BYTES {
+            let Some(oldest) = materials
                 .iter()
-                .min_by_key(|(_, (_, used))| *used)
+                .min_by_key(|(_, c)| c.used)
                 .map(|(k, _)| k.clone())
-        {
-            materials.remove(&oldest);
+            else {
+                break;
+            };
+            total -= materials.remove(&oldest).map_or(0, |c| c.bytes);
         }
-        materials.insert(key.clone(), (built, now));
+        materials.insert(
+            key.clone(),
+            Cached {
+                material: built,
+                used: now,
+                bytes,
+            },
+        );
     }
     let entry = materials.get_mut(&key).expect("present or inserted above");
-    entry.1 = now;
-    Ok(&entry.0)
+    entry.used = now;
+    Ok(&entry.material)
 }
 
 #[cfg(test)]
@@ -174,6 +210,7 @@ mod tests {
             assert!(requests.cached_materials() <= MATERIAL_CACHE_SIZE);
         }
         assert_eq!(requests.cached_materials(), MATERIAL_CACHE_SIZE);
+        assert!(requests.cached_bytes() <= MATERIAL_CACHE_BYTES);
         // Seed 0 was evicted long ago; its answer is the same after a rebuild.
         assert_eq!(requests.answer(&line(0)).unwrap(), first);
         // The most recently used survive: seed 1 was evicted, the last one was not.
@@ -184,5 +221,27 @@ mod tests {
                 .keys()
                 .any(|k| k.contains(&format!("\"seed\":{last}")))
         );
+    }
+
+    /// The most anisotropic materials (α = 10⁻⁴ against α_y = 1, about 50 MB each) are
+    /// bounded by memory, not by number: a handful stay cached, and an evicted one answers as
+    /// before when it comes back.
+    #[test]
+    fn the_material_cache_is_bounded_in_memory() {
+        let line = |seed: usize| {
+            format!(
+                r#"{{"op": "eval", "material": {{"distribution": "ggx", "alpha": 1e-4, "alpha_y": 1, "particles": 1e6, "gamma_deg": 1.0, "seed": {seed}}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+            )
+        };
+        let mut requests = JsonLines::new();
+        let first = requests.answer(&line(0)).unwrap();
+        let one = requests.cached_bytes();
+        assert!(one > 40_000_000, "{one} bytes estimated");
+        for seed in 1..8 {
+            requests.answer(&line(seed)).unwrap();
+            assert!(requests.cached_bytes() <= MATERIAL_CACHE_BYTES);
+        }
+        assert_eq!(requests.cached_materials(), MATERIAL_CACHE_BYTES / one);
+        assert_eq!(requests.answer(&line(0)).unwrap(), first);
     }
 }

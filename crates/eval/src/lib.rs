@@ -35,6 +35,6 @@ mod json_lines;
 mod material;
 mod request;
 
-pub use json_lines::{JsonLines, MATERIAL_CACHE_SIZE};
+pub use json_lines::{JsonLines, MATERIAL_CACHE_BYTES, MATERIAL_CACHE_SIZE};
 pub use material::{FresnelSpec, MaterialSpec};
 pub use request::{EvalAnswer, EvalMaterial, SampleAnswer, split_uniform, uniforms_from_three};

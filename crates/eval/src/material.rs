@@ -2,8 +2,8 @@
 //! the messages that name a rejected field.
 
 use glint_brdf::{
-    DVec3, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet, MultinomialMode,
-    PdfQuadrature,
+    BrdfError, DVec3, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet,
+    MultinomialMode, PdfQuadrature,
 };
 use serde_json::{Map, Value};
 
@@ -43,8 +43,8 @@ pub struct MaterialSpec {
     pub gamma_deg: f64,
     /// ε of Eq. 10; defaults to 0.1.
     pub epsilon: Option<f64>,
-    /// The particle set, a whole number in [0, 1.8·10¹⁹); defaults to 0.
-    pub seed: Option<f64>,
+    /// The particle set, any 64-bit unsigned number; defaults to 0.
+    pub seed: Option<u64>,
     /// The Fresnel term.
     pub fresnel: FresnelSpec,
     /// `"exact"` (the default) or `"normal"`.
@@ -128,11 +128,8 @@ impl MaterialSpec {
             Microfacet::new(kind, alpha, alpha_y).map_err(|e| format!("material: {e}"))?;
         let mut parameters = GlintParameters::new(distribution);
         let particles = finite(self.particles, "material.particles")?;
-        if !(particles >= 1.0 && particles.fract() == 0.0 && particles <= 9.007_199_254_740_992e15)
-        {
-            return Err(format!(
-                "material.particles = {particles:?} must be a whole number in [1, 2^53]"
-            ));
+        if !(particles >= 1.0 && particles.fract() == 0.0 && particles <= MAX_PARTICLES) {
+            return Err(particles_error(particles));
         }
         parameters.particles = particles as u64;
         let gamma_deg = finite(self.gamma_deg, "material.gamma_deg")?;
@@ -148,13 +145,7 @@ impl MaterialSpec {
             parameters.epsilon = finite(epsilon, "material.epsilon")?;
         }
         if let Some(seed) = self.seed {
-            let seed = finite(seed, "material.seed")?;
-            if !(seed >= 0.0 && seed.fract() == 0.0 && seed < 1.8e19) {
-                return Err(format!(
-                    "material.seed = {seed:?} must be a whole number in [0, 1.8e19)"
-                ));
-            }
-            parameters.seed = seed as u64;
+            parameters.seed = seed;
         }
         if let Some(area) = self.expected_footprint_area {
             parameters.expected_footprint_area = finite(area, "material.expected_footprint_area")?;
@@ -189,16 +180,23 @@ impl MaterialSpec {
                 ));
             }
         };
-        parameters.fresnel = match self.fresnel {
-            FresnelSpec::None => Fresnel::None,
-            FresnelSpec::Conductor { eta, k } => Fresnel::Conductor {
-                eta: DVec3::from_array(eta),
-                k: DVec3::from_array(k),
-            },
-            FresnelSpec::Dielectric { eta } => Fresnel::Dielectric { eta },
-        }
-        .validated()
-        .map_err(|e| format!("material: {e}"))?;
+        let (fresnel, kind) = match self.fresnel {
+            FresnelSpec::None => (Fresnel::None, "none"),
+            FresnelSpec::Conductor { eta, k } => (
+                Fresnel::Conductor {
+                    eta: DVec3::from_array(eta),
+                    k: DVec3::from_array(k),
+                },
+                "conductor",
+            ),
+            FresnelSpec::Dielectric { eta } => (Fresnel::Dielectric { eta }, "dielectric"),
+        };
+        parameters.fresnel = fresnel.validated().map_err(|e| match e {
+            BrdfError::InvalidFresnel { parameter, .. } => {
+                format!("material.fresnel.{kind}.{parameter}: {e}")
+            }
+            other => format!("material: {other}"),
+        })?;
         Ok(parameters)
     }
 
@@ -208,12 +206,7 @@ impl MaterialSpec {
     /// A message naming the field that is unknown, missing or of the wrong type.
     pub fn from_json(material: &Value) -> Result<Self, String> {
         let m = material.as_object().ok_or("`material` must be an object")?;
-        if let Some(unknown) = m.keys().find(|k| !KNOWN_FIELDS.contains(&k.as_str())) {
-            return Err(format!(
-                "unknown material field `{unknown}` (known: {})",
-                KNOWN_FIELDS.join(", ")
-            ));
-        }
+        known_fields(m, &KNOWN_FIELDS, "material field")?;
         let distribution = match m.get("distribution") {
             Some(Value::String(name)) => name.clone(),
             Some(other) => {
@@ -245,10 +238,10 @@ impl MaterialSpec {
             distribution,
             alpha: number(m, "alpha", "material.alpha")?,
             alpha_y: optional_number(m, "alpha_y", "material.alpha_y")?,
-            particles: number(m, "particles", "material.particles")?,
+            particles: particles_from_json(m)?,
             gamma_deg: number(m, "gamma_deg", "material.gamma_deg")?,
             epsilon: optional_number(m, "epsilon", "material.epsilon")?,
-            seed: optional_number(m, "seed", "material.seed")?,
+            seed: seed_from_json(m.get("seed"))?,
             fresnel: fresnel_from_json(m.get("fresnel"))?,
             multinomial,
             expected_footprint_area: optional_number(
@@ -260,6 +253,64 @@ impl MaterialSpec {
             pdf_points: optional_number(m, "pdf_points", "material.pdf_points")?,
             negligible_count: optional_number(m, "negligible_count", "material.negligible_count")?,
         })
+    }
+}
+
+/// An error naming the first key of `object` not in `known`, "unknown {what} `key`"
+/// (`docs/eval.md`: unknown fields are errors, so that a typo does not pass unnoticed).
+pub(crate) fn known_fields(
+    object: &Map<String, Value>,
+    known: &[&str],
+    what: &str,
+) -> Result<(), String> {
+    match object.keys().find(|k| !known.contains(&k.as_str())) {
+        None => Ok(()),
+        Some(unknown) => Err(format!(
+            "unknown {what} `{unknown}` (known: {})",
+            known.join(", ")
+        )),
+    }
+}
+
+/// The most particles a material may have, 2⁵³: every whole number up to it is a double, and
+/// it is the count tree's limit.
+const MAX_PARTICLES: f64 = 9_007_199_254_740_992.0;
+
+fn particles_error(particles: impl std::fmt::Debug) -> String {
+    format!("material.particles = {particles:?} must be a whole number in [1, 2^53]")
+}
+
+/// `particles` of a JSON material: a JSON integer above 2⁵³ is refused as it is written (read
+/// as a double it would round to a whole number within the range).
+fn particles_from_json(m: &Map<String, Value>) -> Result<f64, String> {
+    if let Some(n) = m.get("particles").and_then(Value::as_u64)
+        && n > 1 << 53
+    {
+        return Err(particles_error(n));
+    }
+    number(m, "particles", "material.particles")
+}
+
+/// `seed` of a JSON material: a JSON integer is read exactly (every 64-bit unsigned number is
+/// a seed); any other number must be a whole number below 2⁶⁴.
+fn seed_from_json(value: Option<&Value>) -> Result<Option<u64>, String> {
+    let Some(value) = value else {
+        return Ok(None);
+    };
+    if let Some(seed) = value.as_u64() {
+        return Ok(Some(seed));
+    }
+    match value.as_f64() {
+        // 2⁶⁴ = 18446744073709551616 is the first double past u64::MAX.
+        Some(x) if x >= 0.0 && x.fract() == 0.0 && x < 18_446_744_073_709_551_616.0 => {
+            Ok(Some(x as u64))
+        }
+        Some(x) if x.is_finite() => Err(format!(
+            "material.seed = {x:?} must be a whole number in [0, 2^64)"
+        )),
+        _ => Err(format!(
+            "material.seed must be a finite number, not {value}"
+        )),
     }
 }
 
@@ -279,6 +330,7 @@ fn fresnel_from_json(value: Option<&Value>) -> Result<FresnelSpec, String> {
             let c = o["conductor"]
                 .as_object()
                 .ok_or("material.fresnel.conductor must be an object")?;
+            known_fields(c, &["eta", "k"], "material.fresnel.conductor field")?;
             FresnelSpec::Conductor {
                 eta: numbers_in::<3>(c, "eta", "material.fresnel.conductor.eta")?,
                 k: numbers_in::<3>(c, "k", "material.fresnel.conductor.k")?,
@@ -288,6 +340,7 @@ fn fresnel_from_json(value: Option<&Value>) -> Result<FresnelSpec, String> {
             let d = o["dielectric"]
                 .as_object()
                 .ok_or("material.fresnel.dielectric must be an object")?;
+            known_fields(d, &["eta"], "material.fresnel.dielectric field")?;
             FresnelSpec::Dielectric {
                 eta: number(d, "eta", "material.fresnel.dielectric.eta")?,
             }

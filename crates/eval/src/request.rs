@@ -1,7 +1,7 @@
 //! The answers to `eval`, `sample` and `pdf` requests from plain numbers, validated as
 //! `docs/eval.md` says: directions are normalized (a zero or non-finite vector is an error, a
-//! direction below the horizon is valid and gives zeros), footprints must be finite, uniform
-//! numbers lie in [0, 1).
+//! direction below the horizon is valid and gives zeros), footprints must be finite with edges
+//! within ±10¹⁵, uniform numbers lie in [0, 1).
 
 use glint_brdf::{Bxdf, BxdfSample, DVec2, DVec3, DiscreteBrdf, Footprint, QueryScratch};
 
@@ -76,8 +76,8 @@ impl EvalMaterial {
         let wi = direction(wi, "wi")?;
         let wo = direction(wo, "wo")?;
         let uv = vector2(uv, "uv")?;
-        let duv_dx = vector2(duv_dx, "duv_dx")?;
-        let duv_dy = vector2(duv_dy, "duv_dy")?;
+        let duv_dx = edge(duv_dx, "duv_dx")?;
+        let duv_dy = edge(duv_dy, "duv_dy")?;
         let footprint =
             Footprint::new(uv, duv_dx, duv_dy).map_err(|e| format!("footprint: {e}"))?;
         let bxdf = self.brdf.at(&footprint, scratch);
@@ -125,14 +125,14 @@ impl EvalMaterial {
     }
 }
 
-/// A direction, normalized ([`glint_brdf::frame::unit_direction`]); zero and non-finite
-/// vectors are rejected.
+/// A direction as [`glint_brdf::frame::given_direction`] takes it (the C API's rule too);
+/// zero and non-finite vectors are rejected.
 fn direction(v: [f64; 3], name: &str) -> Result<DVec3, String> {
     let v = DVec3::from_array(v);
     if !v.is_finite() {
         return Err(format!("{name} must hold finite numbers, not {v}"));
     }
-    glint_brdf::frame::unit_direction(v).ok_or_else(|| format!("{name} has zero length"))
+    glint_brdf::frame::given_direction(v).ok_or_else(|| format!("{name} has zero length"))
 }
 
 fn vector2(v: [f64; 2], name: &str) -> Result<DVec2, String> {
@@ -142,6 +142,21 @@ fn vector2(v: [f64; 2], name: &str) -> Result<DVec2, String> {
     } else {
         Err(format!("{name} must hold finite numbers, not {v}"))
     }
+}
+
+/// A footprint edge: finite, each component within ±[`Footprint::MAX_EDGE`] (the footprint's
+/// area and count stay finite).
+fn edge(v: [f64; 2], name: &str) -> Result<DVec2, String> {
+    let v = vector2(v, name)?;
+    if v.abs().max_element() > Footprint::MAX_EDGE {
+        return Err(format!(
+            "{name} must hold numbers within ±{:e}, not [{:?}, {:?}]",
+            Footprint::MAX_EDGE,
+            v.x,
+            v.y
+        ));
+    }
+    Ok(v)
 }
 
 fn check_uniforms(u: &[f64]) -> Result<(), String> {

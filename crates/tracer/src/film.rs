@@ -152,8 +152,8 @@ pub fn validate_settings(settings: &RenderSettings) -> Result<(), TracerError> {
         return fail(
             "footprint_scale",
             format!(
-                "{} must be positive and at most 10⁶ pixels",
-                settings.footprint_scale
+                "{} must be in (0, 1e6] pixels",
+                crate::limits::number(settings.footprint_scale)
             ),
         );
     }

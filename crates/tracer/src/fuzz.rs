@@ -152,7 +152,8 @@ impl Drop for Fixture {
 /// Renders `text` as a scene beside the fixture's assets at 6 × 4 pixels, one sample, paths of
 /// at most three bounces, at `frame`: `Err` when the scene (or the camera at `frame`) is
 /// refused, else the image, whose every pixel must be finite, non-negative and at most
-/// [`limits::MAX_SAMPLE_RADIANCE`].
+/// [`limits::MAX_SAMPLE_RADIANCE`], and no sample of which may be non-finite (a discarded
+/// sample is a NaN or an overflow that an accepted value let through).
 pub(crate) fn render_tiny(
     fixture: &Fixture,
     text: &str,
@@ -165,6 +166,10 @@ pub(crate) fn render_tiny(
     settings.samples_per_pixel = 1;
     settings.max_depth = settings.max_depth.min(3);
     let output = crate::render(&scene, &settings, frame, &|_, _| {})?;
+    assert_eq!(
+        output.statistics.discarded_samples, 0,
+        "non-finite samples from\n{text}"
+    );
     for p in &output.image.pixels {
         assert!(
             p.is_finite()

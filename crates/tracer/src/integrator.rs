@@ -531,7 +531,7 @@ pub fn radiance(
         let cones = ConeVertex::at(
             settings,
             material,
-            ctx.footprint.is_some(),
+            &ctx,
             surface.point,
             [frame.t, frame.b, frame.n],
             geometric_normal,

@@ -114,19 +114,20 @@ pub(crate) struct ConeVertex {
 
 impl ConeVertex {
     /// The vertex if light cones apply: the setting is on, light sampling is used, the
-    /// material is a pure glint material and it has a footprint here.
+    /// material is a pure glint material and it has a footprint here (one it can query: a
+    /// footprint beyond [`glint_brdf::Footprint::MAX_EDGE`] shades the smooth limit, lit by
+    /// light samples).
     pub(crate) fn at(
         settings: &RenderSettings,
         material: &Material,
-        has_footprint: bool,
+        ctx: &ShadingContext<'_>,
         point: DVec3,
         frame: [DVec3; 3],
         geometric_normal: DVec3,
     ) -> Option<Self> {
         let applies = settings.glint_light_cones
             && settings.light_strategy != LightStrategy::BrdfOnly
-            && has_footprint
-            && matches!(material, Material::Glint(_));
+            && matches!(material, Material::Glint(g) if g.footprint(ctx).is_some());
         applies.then_some(Self {
             point,
             frame,

@@ -59,10 +59,6 @@ pub const MAX_MIX_DEPTH: usize = 16;
 /// fewer than 60.
 pub const MAX_MATERIAL_PARTS: usize = 256;
 
-/// The largest real or imaginary part of an index of refraction (η, k): real materials have
-/// η ≤ 4 and k ≤ 10 in the visible; 10³ keeps the Fresnel terms' η²k² at 10¹².
-pub const MAX_IOR: f64 = 1e3;
-
 /// The most primitives (spheres, rectangles, area lights and mesh triangles) in one scene:
 /// 2²⁴ ≈ 1.7·10⁷, about 2 GB with their meshes and BVH.
 pub const MAX_PRIMITIVES: usize = 1 << 24;

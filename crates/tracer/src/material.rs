@@ -282,13 +282,18 @@ pub fn sample_cosine_hemisphere(u: [f64; 2]) -> DVec3 {
 }
 
 impl GlintMaterial {
+    /// The context's footprint in this material's particle squares (scaled by `uv_scale`):
+    /// `None` without one, or when it exceeds what a footprint may span
+    /// ([`Footprint::MAX_EDGE`]); the material then shades its smooth limit.
+    pub(crate) fn footprint(&self, ctx: &ShadingContext<'_>) -> Option<Footprint> {
+        let (dx, dy) = ctx.footprint?;
+        let s = self.uv_scale;
+        Footprint::new(ctx.uv * s, dx * s, dy * s).ok()
+    }
+
     /// f̂ for the context's footprint (counting the query), or the smooth BRDF without one.
     fn eval(&self, wi: DVec3, wo: DVec3, ctx: &mut ShadingContext<'_>) -> DVec3 {
-        let Some((dx, dy)) = ctx.footprint else {
-            return self.brdf.smooth().eval(wi, wo);
-        };
-        let s = self.uv_scale;
-        let Ok(footprint) = Footprint::new(ctx.uv * s, dx * s, dy * s) else {
+        let Some(footprint) = self.footprint(ctx) else {
             return self.brdf.smooth().eval(wi, wo);
         };
         let result = self.brdf.at(&footprint, ctx.scratch).evaluate(wi, wo);
@@ -307,11 +312,7 @@ impl GlintMaterial {
         ctx: &mut ShadingContext<'_>,
         visible: impl FnOnce() -> bool,
     ) -> Option<DVec3> {
-        let s = self.uv_scale;
-        let footprint = ctx
-            .footprint
-            .and_then(|(dx, dy)| Footprint::new(ctx.uv * s, dx * s, dy * s).ok());
-        let Some(footprint) = footprint else {
+        let Some(footprint) = self.footprint(ctx) else {
             return nonzero_where_visible(self.brdf.smooth().eval(wi, wo), visible);
         };
         let result = self
@@ -332,11 +333,7 @@ impl GlintMaterial {
         half_angle: f64,
         ctx: &mut ShadingContext<'_>,
     ) -> DVec3 {
-        let Some((dx, dy)) = ctx.footprint else {
-            return DVec3::ZERO;
-        };
-        let s = self.uv_scale;
-        let Ok(footprint) = Footprint::new(ctx.uv * s, dx * s, dy * s) else {
+        let Some(footprint) = self.footprint(ctx) else {
             return DVec3::ZERO;
         };
         let result = self
@@ -739,5 +736,46 @@ mod tests {
         let _ = glint.eval(wi, wo, &mut ctx);
         assert_eq!(counters.queries, 1);
         assert!(counters.nodes_visited > 0);
+    }
+
+    /// A footprint beyond what a footprint may span (edges past ±10¹⁵ particle squares, as a
+    /// huge `uv_scale` gives) shades the smooth limit, bit for bit, and queries nothing; at
+    /// the limit itself the glint query answers a finite f̂.
+    #[test]
+    fn footprints_beyond_the_limit_shade_the_smooth_limit() {
+        let Material::Glint(glint) = &materials()[3] else {
+            panic!("material 3 is the glint material");
+        };
+        let mut scratch = QueryScratch::new();
+        let mut counters = GlintCounters::default();
+        let wi = DVec3::new(0.3, 0.0, 0.954).normalize();
+        let wo = DVec3::new(-0.3, 0.05, 0.954).normalize();
+        let smooth = glint.brdf.smooth().eval(wi, wo);
+        for side in [1e15 * 1.0001, 1e154, 1e300, f64::MAX] {
+            let mut ctx = ShadingContext {
+                uv: DVec2::new(0.2, 0.7),
+                footprint: Some((DVec2::new(side, 0.0), DVec2::new(0.0, 1e-3))),
+                scratch: &mut scratch,
+                counters: &mut counters,
+            };
+            assert!(glint.footprint(&ctx).is_none());
+            assert_eq!(glint.eval(wi, wo, &mut ctx), smooth, "{side}");
+            assert_eq!(
+                glint.eval_if_visible(wi, wo, &mut ctx, || true),
+                Some(smooth)
+            );
+        }
+        assert_eq!(counters.queries, 0);
+        let mut ctx = ShadingContext {
+            uv: DVec2::new(0.2, 0.7),
+            footprint: Some((DVec2::new(1e15, 0.0), DVec2::new(0.0, 1e15))),
+            scratch: &mut scratch,
+            counters: &mut counters,
+        };
+        let f = glint.eval(wi, wo, &mut ctx);
+        assert!(
+            f.is_finite() && f.min_element() >= 0.0 && f != smooth,
+            "{f}"
+        );
     }
 }

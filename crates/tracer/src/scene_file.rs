@@ -31,7 +31,7 @@ use crate::integrator::{
     RenderSettings,
 };
 use crate::light::{EnvironmentMap, Light};
-use crate::limits::{self, echo, vector};
+use crate::limits::{self, echo};
 use crate::material::{GlintMaterial, Material, Mirror, Plastic, Texture};
 use crate::mesh::Mesh;
 use crate::scene::Scene;
@@ -619,9 +619,15 @@ impl Builder<'_> {
         self.colour_at_most(field, c, limits::MAX_ALBEDO, "albedo")
     }
 
-    /// An index of refraction's real or imaginary parts: in [0, [`limits::MAX_IOR`]].
-    fn ior(&self, field: &str, c: Colour) -> Checked<DVec3> {
-        self.colour_at_most(field, c, limits::MAX_IOR, "index of refraction")
+    /// A Fresnel term within glint-brdf's range (η in [10⁻³, 10³], k in [0, 10³]: the range
+    /// of every interface), its error naming `{field}.eta` or `{field}.k`.
+    fn checked_fresnel(&self, field: &str, fresnel: Fresnel) -> Checked<Fresnel> {
+        fresnel.validated().map_err(|e| match e {
+            glint_brdf::BrdfError::InvalidFresnel { parameter, .. } => {
+                self.brdf_error(&format!("{field}.{parameter}"), &e)
+            }
+            other => self.brdf_error(field, &other),
+        })
     }
 
     /// An emitted radiance or irradiance: components in [0, [`limits::MAX_EMISSION`]].
@@ -822,10 +828,13 @@ impl Builder<'_> {
             "conductor" => {
                 let c: ConductorSection = self.section(&field, section)?;
                 let distribution = self.microfacet(&field, c.distribution, c.alpha)?;
-                let fresnel = Fresnel::Conductor {
-                    eta: self.ior(&format!("{field}.eta"), c.eta)?,
-                    k: self.ior(&format!("{field}.k"), c.k)?,
-                };
+                let fresnel = self.checked_fresnel(
+                    &field,
+                    Fresnel::Conductor {
+                        eta: c.eta.rgb(),
+                        k: c.k.rgb(),
+                    },
+                )?;
                 Material::Microfacet(
                     MicrofacetBrdf::new(distribution, fresnel, NormalSampling::Distribution)
                         .map_err(|e| self.brdf_error(&format!("{field}.eta"), &e))?,
@@ -834,8 +843,8 @@ impl Builder<'_> {
             "plastic" => {
                 let p: PlasticSection = self.section(&field, section)?;
                 let distribution = self.microfacet(&field, p.distribution, p.alpha)?;
-                let eta = self.positive(&format!("{field}.eta"), p.eta)?;
-                let eta = self.within(&format!("{field}.eta"), eta, 0.0, limits::MAX_IOR)?;
+                let eta = p.eta;
+                self.checked_fresnel(&field, Fresnel::Dielectric { eta })?;
                 Material::Plastic(Plastic {
                     base: self.texture(&field, p.colour, p.texture.as_deref(), p.texture_scale)?,
                     coat: MicrofacetBrdf::new(
@@ -853,13 +862,15 @@ impl Builder<'_> {
             }
             "mirror" => {
                 let m: MirrorSection = self.section(&field, section)?;
-                let colour = m.colour.map_or(DVec3::ONE, |c| c.rgb());
-                if !(colour.min_element() >= 0.0 && colour.max_element() <= 1.0) {
-                    return self.fail(
-                        format!("{field}.colour"),
-                        format!("each channel must be in [0, 1], got {}", vector(colour)),
-                    );
-                }
+                let colour = match m.colour {
+                    None => DVec3::ONE,
+                    Some(c) => self.colour_at_most(
+                        &format!("{field}.colour"),
+                        c,
+                        1.0,
+                        "reflectance factor",
+                    )?,
+                };
                 Material::Mirror(Mirror {
                     colour,
                     fresnel: self.fresnel(&format!("{field}.fresnel"), m.fresnel.as_ref())?,
@@ -914,40 +925,41 @@ impl Builder<'_> {
 
     /// The Fresnel term of section `field` (absent: none).
     fn fresnel(&self, field: &str, section: Option<&FresnelSection>) -> Checked<Fresnel> {
-        Ok(match section {
+        let fresnel = match section {
             None | Some(FresnelSection::None) => Fresnel::None,
             Some(FresnelSection::Conductor { eta, k }) => Fresnel::Conductor {
-                eta: self.ior(&format!("{field}.eta"), *eta)?,
-                k: self.ior(&format!("{field}.k"), *k)?,
+                eta: eta.rgb(),
+                k: k.rgb(),
             },
-            Some(FresnelSection::Dielectric { eta }) => {
-                let eta_field = format!("{field}.eta");
-                let eta = self.positive(&eta_field, *eta)?;
-                Fresnel::Dielectric {
-                    eta: self.within(&eta_field, eta, 0.0, limits::MAX_IOR)?,
-                }
-            }
-        })
+            Some(FresnelSection::Dielectric { eta }) => Fresnel::Dielectric { eta: *eta },
+        };
+        self.checked_fresnel(field, fresnel)
     }
 
     fn glint(&self, field: &str, g: &GlintSection) -> Checked<Material> {
         let distribution = self.microfacet(field, g.distribution, g.alpha)?;
         let mut parameters = GlintParameters::new(distribution);
-        if !(g.particles >= 1.0 && g.particles <= 1e18 && g.particles.fract() == 0.0) {
+        // 2⁵³, the count tree's limit: every whole number up to it is a double.
+        if !(g.particles >= 1.0
+            && g.particles <= 9_007_199_254_740_992.0
+            && g.particles.fract() == 0.0)
+        {
             return self.fail(
                 format!("{field}.particles"),
                 format!(
-                    "must be a whole number in [1, 10¹⁸], got {}",
+                    "must be a whole number in [1, 2^53], got {}",
                     shown(g.particles)
                 ),
             );
         }
         parameters.particles = g.particles as u64;
-        if !(g.gamma > 0.0 && g.gamma <= 60.0) {
+        // glint-brdf's range, [10⁻⁶ rad, 60°].
+        let smallest = 1e-6f64.to_degrees();
+        if !(g.gamma >= smallest && g.gamma <= 60.0) {
             return self.fail(
                 format!("{field}.gamma"),
                 format!(
-                    "the cone radius must be in (0°, 60°], got {}°",
+                    "the cone radius must be in [{smallest:.3e}°, 60°] (10⁻⁶ rad to 60°), got {}°",
                     shown(g.gamma)
                 ),
             );
@@ -1142,6 +1154,16 @@ impl Builder<'_> {
             };
             if !k.frame.is_finite() {
                 return self.fail(format!("{field}.frame"), "must be finite");
+            }
+            // Two poses at one frame would make the camera there depend on their order.
+            if let Some(j) = keyframes.iter().position(|other| other.frame == k.frame) {
+                return self.fail(
+                    format!("{field}.frame"),
+                    format!(
+                        "frame {} is also camera.keyframes[{j}]'s: each keyframe needs a frame of its own",
+                        shown(k.frame)
+                    ),
+                );
             }
             keyframes.push(Keyframe {
                 frame: k.frame,
@@ -1655,7 +1677,7 @@ power = 10
                 "gamma = 2",
                 "gamma = 90",
                 "materials.sparkle.gamma",
-                "(0°, 60°]",
+                "[5.730e-5°, 60°]",
             ),
             (
                 "particles = 1e6",
@@ -1802,7 +1824,8 @@ mod limit_tests {
 
     /// A scene whose values are slots: `{center}`, `{radius}`, `{u}`, `{scale}`, `{translate}`,
     /// `{position}`, `{power}`, `{light_radius}`, `{radiance}`, `{irradiance}`, `{env}`,
-    /// `{env_scale}`, `{albedo}`, `{weight}`, `{obj_x}`.
+    /// `{env_scale}`, `{albedo}`, `{weight}`, `{obj_x}`, `{uv_scale}`, `{eta}`, `{k}`,
+    /// `{mirror_colour}`, `{mirror_eta}`.
     const TEMPLATE: &str = r#"
 [render]
 integrator = "path"
@@ -1819,6 +1842,12 @@ alpha = 0.2
 particles = 1e6
 gamma = 2
 negligible_count = 0
+uv_scale = {uv_scale}
+fresnel = { type = "conductor", eta = {eta}, k = {k} }
+[materials.shiny]
+type = "mirror"
+colour = [0.9, {mirror_colour}, 0.8]
+fresnel = { type = "dielectric", eta = {mirror_eta} }
 [materials.both]
 type = "mix"
 components = [{ material = "white", weight = {weight} }, { material = "sparkle", weight = 0.5 }]
@@ -1838,6 +1867,12 @@ type = "mesh"
 file = "mesh.obj"
 material = "both"
 transform = { scale = {scale}, translate = [{translate}, 0, 0] }
+[[shapes]]
+type = "rectangle"
+center = [0, 0, -3]
+u = [3, 0, 0]
+v = [0, 3, 0]
+material = "shiny"
 [[lights]]
 type = "sphere"
 center = [1, 2, 1]
@@ -1859,7 +1894,7 @@ radiance = {env}
 scale = {env_scale}
 "#;
 
-    const SLOTS: [&str; 15] = [
+    const SLOTS: [&str; 20] = [
         "center",
         "radius",
         "u",
@@ -1875,12 +1910,21 @@ scale = {env_scale}
         "albedo",
         "weight",
         "obj_x",
+        "uv_scale",
+        "eta",
+        "k",
+        "mirror_colour",
+        "mirror_eta",
     ];
 
     /// Ordinary values for every slot.
     fn ordinary(slot: &str) -> f64 {
         match slot {
-            "radius" | "scale" | "albedo" | "weight" | "env" | "env_scale" => 0.5,
+            "radius" | "scale" | "albedo" | "weight" | "env" | "env_scale" | "eta" => 0.5,
+            "uv_scale" => 1.0,
+            "k" => 3.0,
+            "mirror_colour" => 0.9,
+            "mirror_eta" => 1.5,
             "u" => 8.0,
             "light_radius" => 0.1,
             "power" => 10.0,
@@ -1923,6 +1967,38 @@ scale = {env_scale}
         }
     }
 
+    /// Each (slot, value, field, words): the scene with `value` in `slot` is refused, naming
+    /// `field`, with a problem containing `words`.
+    fn assert_slot_errors(fixture: &Fixture, cases: &[(&str, f64, &str, &str)]) {
+        for &(slot, value, field, words) in cases {
+            let mut values = ordinary_values();
+            values.insert(slot, value);
+            let (f, problem) = error_in(fixture, &values);
+            assert_eq!(f, field, "{slot} = {value}: {problem}");
+            assert!(
+                problem.contains(words),
+                "{slot} = {value}: `{problem}` lacks `{words}`"
+            );
+        }
+    }
+
+    /// Each (from, to, field, words): `text` with `from` replaced by `to` is refused, naming
+    /// `field`, with a problem containing `words`.
+    fn assert_edit_errors(fixture: &Fixture, text: &str, cases: &[(&str, &str, &str, &str)]) {
+        for &(from, to, field, words) in cases {
+            assert!(text.contains(from), "{from}");
+            match parse_scene(&text.replacen(from, to, 1), &fixture.scene_path()) {
+                Err(TracerError::Scene {
+                    field: f, problem, ..
+                }) => {
+                    assert_eq!(f, field, "{to}: {problem}");
+                    assert!(problem.contains(words), "{to}: `{problem}` lacks `{words}`");
+                }
+                other => panic!("{to}: {other:?}"),
+            }
+        }
+    }
+
     fn ordinary_values() -> BTreeMap<&'static str, f64> {
         SLOTS.iter().map(|s| (*s, ordinary(s))).collect()
     }
@@ -1937,7 +2013,11 @@ scale = {env_scale}
                 (limits::MIN_RADIUS..=limits::MAX_COORDINATE).contains(&value)
             }
             "scale" => coordinate && value != 0.0,
-            "albedo" => (0.0..=limits::MAX_ALBEDO).contains(&value),
+            "albedo" | "mirror_colour" => (0.0..=limits::MAX_ALBEDO).contains(&value),
+            // Any positive scale: a footprint beyond ±10¹⁵ texture units is shaded smooth.
+            "uv_scale" => value > 0.0 && value.is_finite(),
+            "eta" | "mirror_eta" => (Fresnel::MIN_ETA..=Fresnel::MAX_ETA).contains(&value),
+            "k" => (0.0..=Fresnel::MAX_K).contains(&value),
             "weight" => (0.0..=limits::MAX_MIX_WEIGHT).contains(&value),
             // Power P over a sphere of radius 0.1: radiance P/(4π²·0.01).
             "power" => value >= 0.0 && value / (4.0 * PI * PI * 0.01) <= limits::MAX_EMISSION,
@@ -1988,6 +2068,100 @@ scale = {env_scale}
         }
     }
 
+    /// Values that slipped through: a mirror colour of NaN, η and k of 10³⁰⁰ (glint-brdf's
+    /// Fresnel range is every interface's), particles above 2⁵³ (the tree's limit), a
+    /// keyframe repeating another's frame: each an error naming its field; a footprint_scale
+    /// of 10³⁰⁰ is named in a short message with the range (not 301 digits).
+    #[test]
+    fn slipped_values_are_named_errors() {
+        let fixture = Fixture::new("limits-slipped");
+        assert_slot_errors(
+            &fixture,
+            &[
+                (
+                    "mirror_colour",
+                    f64::NAN,
+                    "materials.shiny.colour",
+                    "reflectance factor components must be in [0, 1], got [0.9, NaN, 0.8]",
+                ),
+                (
+                    "eta",
+                    1e300,
+                    "materials.sparkle.fresnel.eta",
+                    "Fresnel eta = 1e300",
+                ),
+                ("eta", 0.0, "materials.sparkle.fresnel.eta", "[1e-3, 1e3]"),
+                (
+                    "k",
+                    1001.0,
+                    "materials.sparkle.fresnel.k",
+                    "Fresnel k = 1001.0",
+                ),
+                (
+                    "mirror_eta",
+                    1e-4,
+                    "materials.shiny.fresnel.eta",
+                    "[1e-3, 1e3]",
+                ),
+                (
+                    "uv_scale",
+                    0.0,
+                    "materials.sparkle.uv_scale",
+                    "positive and finite",
+                ),
+                (
+                    "uv_scale",
+                    f64::NAN,
+                    "materials.sparkle.uv_scale",
+                    "positive and finite",
+                ),
+            ],
+        );
+        let text = scene(&fixture, &ordinary_values());
+        assert_edit_errors(
+            &fixture,
+            &text,
+            &[
+                (
+                    "particles = 1e6",
+                    "particles = 9007199254740994",
+                    "materials.sparkle.particles",
+                    "must be a whole number in [1, 2^53]",
+                ),
+                (
+                    "look_at = [0, 0, 0]\n",
+                    "look_at = [0, 0, 0]\n[[camera.keyframes]]\nframe = 3\n[[camera.keyframes]]\nframe = 1\n[[camera.keyframes]]\nframe = 3.0\n",
+                    "camera.keyframes[2].frame",
+                    "frame 3 is also camera.keyframes[0]'s",
+                ),
+                (
+                    "max_depth = 3\n",
+                    "max_depth = 3\nfootprint_scale = 1e300\n",
+                    "render.footprint_scale",
+                    "1e300 must be in (0, 1e6] pixels",
+                ),
+            ],
+        );
+    }
+
+    /// A glint material with `uv_scale` = 10³⁰⁰ (footprints of 10²⁹⁸ texture units, beyond
+    /// the ±10¹⁵ a footprint may span) shades its smooth limit: no sample is discarded (every
+    /// one was, and the image was black), the floor is lit, and every scale beyond the limit
+    /// gives the same image.
+    #[test]
+    fn a_huge_uv_scale_shades_the_smooth_limit() {
+        let fixture = Fixture::new("limits-uv-scale");
+        let image = |uv_scale: f64| {
+            let mut values = ordinary_values();
+            values.insert("uv_scale", uv_scale);
+            render_tiny(&fixture, &scene(&fixture, &values), 0.0).unwrap()
+        };
+        let huge = image(1e300);
+        assert!(huge.mean().max_element() > 0.0);
+        assert_eq!(huge.pixels, image(1e200).pixels);
+        assert_eq!(huge.pixels, image(f64::MAX).pixels);
+    }
+
     /// Coordinates beyond ±10¹⁵ (the reported inputs: a sphere of radius 10²⁰⁰, a centre at
     /// 10³⁰⁰, a transform scaling by 10³⁰⁰, an OBJ vertex at 3·10³⁸) are errors naming the file
     /// and the field, and for an OBJ the vertex.
@@ -2029,45 +2203,39 @@ scale = {env_scale}
     #[test]
     fn light_and_reflectance_values_are_bounded() {
         let fixture = Fixture::new("limits-light");
-        for (slot, value, field, words) in [
-            (
-                "power",
-                1e300,
-                "lights[0].power",
-                "lower the power or enlarge the light",
-            ),
-            ("radiance", 1e300, "lights[1].radiance", "[0, 1e20]"),
-            ("irradiance", 1e21, "lights[2].irradiance", "[0, 1e20]"),
-            ("env", 1e300, "lights[3].radiance", "times scale"),
-            ("env_scale", 1e300, "lights[3].radiance", "times scale"),
-            (
-                "albedo",
-                5.0,
-                "materials.white.colour",
-                "albedo components must be in [0, 1]",
-            ),
-            (
-                "weight",
-                2.0,
-                "materials.both.components[0].weight",
-                "must be in [0, 1]",
-            ),
-            (
-                "light_radius",
-                1e-170,
-                "lights[0].radius",
-                "must be in [1e-9",
-            ),
-        ] {
-            let mut values = ordinary_values();
-            values.insert(slot, value);
-            let (f, problem) = error_in(&fixture, &values);
-            assert_eq!(f, field, "{slot} = {value}: {problem}");
-            assert!(
-                problem.contains(words),
-                "{slot} = {value}: `{problem}` lacks `{words}`"
-            );
-        }
+        assert_slot_errors(
+            &fixture,
+            &[
+                (
+                    "power",
+                    1e300,
+                    "lights[0].power",
+                    "lower the power or enlarge the light",
+                ),
+                ("radiance", 1e300, "lights[1].radiance", "[0, 1e20]"),
+                ("irradiance", 1e21, "lights[2].irradiance", "[0, 1e20]"),
+                ("env", 1e300, "lights[3].radiance", "times scale"),
+                ("env_scale", 1e300, "lights[3].radiance", "times scale"),
+                (
+                    "albedo",
+                    5.0,
+                    "materials.white.colour",
+                    "albedo components must be in [0, 1]",
+                ),
+                (
+                    "weight",
+                    2.0,
+                    "materials.both.components[0].weight",
+                    "must be in [0, 1]",
+                ),
+                (
+                    "light_radius",
+                    1e-170,
+                    "lights[0].radius",
+                    "must be in [1e-9",
+                ),
+            ],
+        );
     }
 
     /// Mistakes inside sections are named by their field: a short array, an unknown material
@@ -2076,56 +2244,48 @@ scale = {env_scale}
     fn errors_name_the_field_inside_sections() {
         let fixture = Fixture::new("limits-fields");
         let text = scene(&fixture, &ordinary_values());
-        for (from, to, field, words) in [
-            (
-                "center = [2.5e-1, 0, 0]",
-                "center = [0.25, 0]",
-                "shapes[0].center",
-                "invalid length 2",
-            ),
-            (
-                "{ material = \"white\", weight",
-                "{ material = \"chalk\", weight",
-                "materials.both.components[0].material",
-                "unknown material `chalk`",
-            ),
-            (
-                "weight = 0.5 }",
-                "weight = \"half\" }",
-                "materials.both.components[1].weight",
-                "invalid type",
-            ),
-            (
-                "colour = 5e-1",
-                "colour = [0.5, 0.5]",
-                "materials.white.colour",
-                "a number or an array of 3 numbers",
-            ),
-            (
-                "type = \"directional\"",
-                "type = \"spot\"",
-                "lights[2].type",
-                "unknown type `spot`",
-            ),
-            (
-                "transform = { scale",
-                "transform = { skew = 1, scale",
-                "shapes[2].transform",
-                "unknown field `skew`",
-            ),
-        ] {
-            assert!(text.contains(from), "{from}");
-            let changed = text.replacen(from, to, 1);
-            match parse_scene(&changed, &fixture.scene_path()) {
-                Err(TracerError::Scene {
-                    field: f, problem, ..
-                }) => {
-                    assert_eq!(f, field, "{to}: {problem}");
-                    assert!(problem.contains(words), "{to}: `{problem}` lacks `{words}`");
-                }
-                other => panic!("{to}: {other:?}"),
-            }
-        }
+        assert_edit_errors(
+            &fixture,
+            &text,
+            &[
+                (
+                    "center = [2.5e-1, 0, 0]",
+                    "center = [0.25, 0]",
+                    "shapes[0].center",
+                    "invalid length 2",
+                ),
+                (
+                    "{ material = \"white\", weight",
+                    "{ material = \"chalk\", weight",
+                    "materials.both.components[0].material",
+                    "unknown material `chalk`",
+                ),
+                (
+                    "weight = 0.5 }",
+                    "weight = \"half\" }",
+                    "materials.both.components[1].weight",
+                    "invalid type",
+                ),
+                (
+                    "colour = 5e-1",
+                    "colour = [0.5, 0.5]",
+                    "materials.white.colour",
+                    "a number or an array of 3 numbers",
+                ),
+                (
+                    "type = \"directional\"",
+                    "type = \"spot\"",
+                    "lights[2].type",
+                    "unknown type `spot`",
+                ),
+                (
+                    "transform = { scale",
+                    "transform = { skew = 1, scale",
+                    "shapes[2].transform",
+                    "unknown field `skew`",
+                ),
+            ],
+        );
     }
 
     /// Input quoted in errors is bounded: a TOML nested 10⁵ deep, a material name of 10⁶

@@ -24,6 +24,11 @@ pub enum TreeError {
     InvalidDensity,
     /// A footprint had a NaN or infinite component.
     NonFiniteFootprint,
+    /// A footprint edge had a component beyond ±[`crate::Footprint::MAX_EDGE`].
+    FootprintTooLarge {
+        /// The largest edge component's magnitude.
+        component: f64,
+    },
     /// Colour channels for particle areas must be 0 (none) to 3.
     InvalidColourChannels {
         /// The rejected value.
@@ -68,6 +73,10 @@ impl fmt::Display for TreeError {
                 "the normal density is negative or not finite somewhere, or integrates to zero"
             ),
             Self::NonFiniteFootprint => write!(f, "footprint has a NaN or infinite component"),
+            Self::FootprintTooLarge { component } => write!(
+                f,
+                "footprint edge component {component:e} is beyond ±1e15 texture units"
+            ),
             Self::InvalidColourChannels { channels } => {
                 write!(f, "{channels} colour channels requested: use 0 (none) to 3")
             }

@@ -162,13 +162,24 @@ impl BoxOverlap {
 }
 
 impl Footprint {
+    /// The largest magnitude of an edge component (texture units): the area is then at most
+    /// 2·10³⁰ tiles and N times it at most 2·10⁴⁶, so no count, D̂ or area overflows (an edge of
+    /// 10¹⁵⁵ overflowed the area; of 10¹⁵⁴, the count). Beyond 10¹⁵ a double resolves no more
+    /// than an eighth of a tile.
+    pub const MAX_EDGE: f64 = 1e15;
+
     /// The parallelogram centred at `uv` with edge vectors `duv_dx`, `duv_dy`.
     ///
     /// # Errors
-    /// [`TreeError::NonFiniteFootprint`] if any component is NaN or infinite.
+    /// [`TreeError::NonFiniteFootprint`] if any component is NaN or infinite,
+    /// [`TreeError::FootprintTooLarge`] if an edge component exceeds [`Self::MAX_EDGE`].
     pub fn new(uv: DVec2, duv_dx: DVec2, duv_dy: DVec2) -> Result<Self, TreeError> {
         if !(uv.is_finite() && duv_dx.is_finite() && duv_dy.is_finite()) {
             return Err(TreeError::NonFiniteFootprint);
+        }
+        let largest = duv_dx.abs().max(duv_dy.abs()).max_element();
+        if largest > Self::MAX_EDGE {
+            return Err(TreeError::FootprintTooLarge { component: largest });
         }
         let center = uv - uv.floor();
         let determinant = duv_dx.perp_dot(duv_dy);
