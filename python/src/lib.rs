@@ -13,7 +13,10 @@
 //! on Linux) has none of the parent's threads, and a pool built before the fork would wait
 //! for them forever.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use glint_brdf::QueryScratch;
 use glint_eval::{EvalMaterial, MaterialSpec, uniforms_from_three};
@@ -94,24 +97,73 @@ fn process_pool() -> PyResult<Arc<rayon::ThreadPool>> {
     }
 }
 
-/// Answers every row in parallel on `pool`, one scratch per task.
+/// Batches of at most this many rows are answered on the calling thread's pool directly;
+/// larger ones are watched for Ctrl-C ([`answer_rows`]). A query's work is bounded by its node
+/// budget, so a small batch ends soon whatever it holds.
+const ROWS_ANSWERED_UNWATCHED: usize = 16;
+
+/// How often a watched batch runs Python's signal handlers.
+const SIGNAL_CHECK_INTERVAL: Duration = Duration::from_millis(50);
+
+/// Answers every row in parallel on `pool`, one scratch per task, with the GIL released.
+///
+/// A large batch runs on a scoped thread while the calling thread waits for it and, every
+/// [`SIGNAL_CHECK_INTERVAL`], takes the GIL to run Python's signal handlers: Ctrl-C sets a flag
+/// the workers read before each row, so the batch stops within about one query's time and the
+/// `KeyboardInterrupt` is raised. A batch that ends returns at once (no polling delay).
 fn answer_rows<I: Sync, O: Send>(
+    py: Python<'_>,
     pool: &rayon::ThreadPool,
     inputs: &[I],
     answer: impl Fn(&mut QueryScratch, &I) -> O + Sync + Send,
-) -> Vec<O> {
-    pool.install(|| {
-        inputs
-            .par_chunks(ROWS_PER_TASK)
-            .flat_map_iter(|chunk| {
-                let mut scratch = QueryScratch::new();
-                chunk
-                    .iter()
-                    .map(|input| answer(&mut scratch, input))
-                    .collect::<Vec<_>>()
-            })
-            .collect()
-    })
+) -> PyResult<Vec<O>> {
+    let cancelled = AtomicBool::new(false);
+    let work = || {
+        pool.install(|| {
+            inputs
+                .par_chunks(ROWS_PER_TASK)
+                .flat_map_iter(|chunk| {
+                    let mut scratch = QueryScratch::new();
+                    chunk
+                        .iter()
+                        .map_while(|input| {
+                            (!cancelled.load(Ordering::Relaxed))
+                                .then(|| answer(&mut scratch, input))
+                        })
+                        .collect::<Vec<_>>()
+                })
+                .collect::<Vec<_>>()
+        })
+    };
+    if inputs.len() <= ROWS_ANSWERED_UNWATCHED {
+        return Ok(py.detach(work));
+    }
+    let mut interrupt = None;
+    let answers = py.detach(|| {
+        std::thread::scope(|scope| {
+            let (done, finished) = mpsc::channel();
+            let worker = scope.spawn(move || {
+                let answers = work();
+                let _ = done.send(());
+                answers
+            });
+            while let Err(RecvTimeoutError::Timeout) = finished.recv_timeout(SIGNAL_CHECK_INTERVAL)
+            {
+                if let Err(error) = Python::attach(|py| py.check_signals()) {
+                    interrupt = Some(error);
+                    cancelled.store(true, Ordering::Relaxed);
+                    break;
+                }
+            }
+            worker
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+        })
+    });
+    match interrupt {
+        Some(error) => Err(error),
+        None => Ok(answers),
+    }
 }
 
 /// The columns of n answers of K numbers each (NaN where a row failed) and the rows' error
@@ -187,27 +239,25 @@ impl Material {
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
         let pool = process_pool()?;
-        let answers = py.detach(|| {
-            answer_rows(&pool, &indices, |scratch, &i| {
-                material
-                    .eval(scratch, wi[i], wo[i], uv[i], dx[i], dy[i])
-                    .map(|e| {
-                        [
-                            e.count,
-                            e.expected_count,
-                            e.d_hat,
-                            e.f_hat.x,
-                            e.f_hat.y,
-                            e.f_hat.z,
-                            e.f_smooth.x,
-                            e.f_smooth.y,
-                            e.f_smooth.z,
-                            f64::from(e.nodes_visited),
-                            e.negligible_bound.unwrap_or(f64::NAN),
-                        ]
-                    })
-            })
-        });
+        let answers = answer_rows(py, &pool, &indices, |scratch, &i| {
+            material
+                .eval(scratch, wi[i], wo[i], uv[i], dx[i], dy[i])
+                .map(|e| {
+                    [
+                        e.count,
+                        e.expected_count,
+                        e.d_hat,
+                        e.f_hat.x,
+                        e.f_hat.y,
+                        e.f_hat.z,
+                        e.f_smooth.x,
+                        e.f_smooth.y,
+                        e.f_smooth.z,
+                        f64::from(e.nodes_visited),
+                        e.negligible_bound.unwrap_or(f64::NAN),
+                    ]
+                })
+        })?;
         columns(
             py,
             [
@@ -257,17 +307,15 @@ impl Material {
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
         let pool = process_pool()?;
-        let answers = py.detach(|| {
-            answer_rows(&pool, &indices, |_, &i| {
-                let u = u[i].clone()?;
-                Ok(match material.sample(wi[i], u)? {
-                    Some(s) => [
-                        s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z,
-                    ],
-                    None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
-                })
+        let answers = answer_rows(py, &pool, &indices, |_, &i| {
+            let u = u[i].clone()?;
+            Ok(match material.sample(wi[i], u)? {
+                Some(s) => [
+                    s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z,
+                ],
+                None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
             })
-        });
+        })?;
         columns(
             py,
             [
@@ -289,11 +337,9 @@ impl Material {
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
         let pool = process_pool()?;
-        let answers = py.detach(|| {
-            answer_rows(&pool, &indices, |_, &i| {
-                material.pdf(wi[i], wo[i]).map(|p| [p])
-            })
-        });
+        let answers = answer_rows(py, &pool, &indices, |_, &i| {
+            material.pdf(wi[i], wo[i]).map(|p| [p])
+        })?;
         columns(py, ["pdf"], answers)
     }
 }

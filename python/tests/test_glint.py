@@ -261,6 +261,49 @@ def test_a_forked_child_answers_large_batches():
     assert _same(m.eval(*rows)["count"], parent["count"])
 
 
+_INTERRUPTED_BATCH = """
+import sys, numpy as np, glint
+m = glint.Material(distribution="beckmann", alpha=0.1, particles=1e12, gamma_deg=1.0,
+                   epsilon=0.0, seed=1)
+n = 1_000_000
+rng = np.random.default_rng(5)
+wi = np.tile([0.0, 0.0, 1.0], (n, 1))
+wo = np.tile([0.0, 0.0, 1.0], (n, 1)) + rng.normal(0, 0.01, (n, 3))
+uv = rng.uniform(0, 1, (n, 2))
+dx = np.tile([3e-3, 0.0], (n, 1))
+dy = np.tile([0.0, 3e-3], (n, 1))
+m.eval(wi[:10], wo[:10], uv[:10], dx[:10], dy[:10])
+print("started", flush=True)
+try:
+    m.eval(wi, wo, uv, dx, dy)
+    print("finished", flush=True)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+"""
+
+
+def test_ctrl_c_interrupts_a_large_batch():
+    """Ctrl-C (SIGINT) stops a batch that runs for a long time with KeyboardInterrupt: the
+    package takes the GIL back between blocks of rows to run Python's signal handlers. The
+    batch (10^6 dense queries) takes far longer than the second it is given."""
+    import signal
+    import sys
+    import time
+
+    child = subprocess.Popen([sys.executable, "-c", _INTERRUPTED_BATCH],
+                             stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "started"
+        time.sleep(1.0)
+        child.send_signal(signal.SIGINT)
+        out, _ = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert out.strip() == "interrupted"
+
+
 @pytest.mark.parametrize("kwargs, message", [
     (dict(distribution=b"beckmann"), "material.distribution"),
     (dict(distribution=object()), "material.distribution"),
