@@ -12,6 +12,8 @@
 
 pub mod counts;
 pub mod geometry;
+pub mod light_cones;
+pub mod mirror_check;
 pub mod sampling;
 
 /// SplitMix64 (Steele, Lea and Flood 2014): a tiny, seedable generator of uniform numbers for

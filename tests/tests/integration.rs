@@ -3,6 +3,8 @@
 //! Sizes here fit `cargo test`; `cargo xtask validate` runs the same checkers at full size.
 
 mod brdf;
+mod footprints;
+mod light_cones;
 mod sphere;
 mod stability;
 mod tree;

@@ -1,4 +1,4 @@
-//! `cargo xtask validate`, footprints through mirrors (`glint_tracer::mirror_check`):
+//! `cargo xtask validate`, footprints through mirrors (`glint_tests::mirror_check`):
 //!
 //! 1. A flat mirror makes a virtual camera: the glittery panel seen in the mirror under
 //!    `glint_footprints = "all"` against the mirrored camera's direct view (flipped): the
@@ -12,7 +12,7 @@
 
 use std::fmt::Write as _;
 
-use glint_tracer::mirror_check::{MirrorCheck, smooth_agreement};
+use glint_tests::mirror_check::{MirrorCheck, smooth_agreement};
 
 use crate::validate::Check;
 

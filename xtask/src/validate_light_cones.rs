@@ -15,9 +15,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use glint_tests::light_cones::{BlockAgreement, test_scene_text};
 use glint_tracer::image::RgbImage;
 use glint_tracer::light::{Light, luminance};
-use glint_tracer::light_cone::{BlockAgreement, test_scene_text};
 use glint_tracer::scene_file::{load_scene, parse_scene};
 use glint_tracer::{LightStrategy, Scene, render};
 

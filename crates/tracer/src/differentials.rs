@@ -10,7 +10,7 @@
 //!
 //! - Planar mirrors (∂n = 0): the reflected offset rays are exactly the rays of the camera
 //!   mirrored in the plane, so the footprint in a flat mirror is the virtual camera's footprint
-//!   (tested in `tests/mirror_footprints.rs`).
+//!   (tested by `glint_tests::mirror_check`, `tests/tests/footprints.rs`).
 //! - Spheres: ∂n/∂u = (∂p/∂u)/r, ∂n/∂v = (∂p/∂v)/r, exact; the transfer through the tangent
 //!   plane is first order, so the footprint is the first-order one.
 //! - Meshes: the derivative of the interpolated vertex normal within the hit triangle

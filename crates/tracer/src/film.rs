@@ -9,11 +9,12 @@ use rayon::prelude::*;
 
 use crate::error::TracerError;
 use crate::image::RgbImage;
-use crate::integrator::{PathState, RenderSettings, filter_offset, radiance};
+use crate::integrator::{PathState, filter_offset, radiance};
 use crate::limits::MAX_SAMPLE_RADIANCE;
 use crate::material::GlintCounters;
 use crate::sampler::{MAX_SAMPLES_PER_PIXEL, PixelSampler};
 use crate::scene::Scene;
+use crate::settings::RenderSettings;
 
 /// The tile edge in pixels.
 const TILE: u32 = 16;
@@ -262,8 +263,8 @@ pub fn render(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrator::LightStrategy;
     use crate::scene_file::parse_scene;
+    use crate::settings::LightStrategy;
     use std::path::Path;
 
     fn scene(text: &str) -> Scene {

@@ -13,142 +13,17 @@
 use glam::{DVec2, DVec3};
 use glint_brdf::QueryScratch;
 
-use crate::accel::{Primitive, PrimitiveHit};
+use crate::accel::PrimitiveHit;
+use crate::bounce::{Frame, mirror_differential, mirror_reflection, offset_origin};
 use crate::camera::{RayDifferential, texture_footprint};
-use crate::differentials::{normal_derivatives, reflect, reflected_differential};
 use crate::light_cone::ConeVertex;
 use crate::material::{GlintCounters, Material, ShadingContext};
 use crate::sampler::{PixelSampler, uniform_index};
 use crate::scene::Scene;
-use crate::shape::{Ray, SurfaceHit};
-use glint_brdf::frame::orthonormal_basis;
-
-/// Which integrator.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum IntegratorKind {
-    /// Emission plus one bounce of light (next-event estimation and BRDF sampling, with MIS).
-    Direct,
-    /// Full path tracing up to the maximum depth.
-    #[default]
-    Path,
-}
-
-/// How direct light is estimated.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum LightStrategy {
-    /// Light sampling and BRDF sampling combined by the power heuristic.
-    #[default]
-    Mis,
-    /// Light sampling only (BRDF-sampled rays that hit emitters are ignored).
-    LightOnly,
-    /// BRDF sampling only (no next-event estimation; delta lights are then invisible).
-    BrdfOnly,
-}
-
-/// Where glint materials use the pixel footprint.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum GlintFootprints {
-    /// At the first hit seen from the camera; the smooth limit after (the paper's choice).
-    #[default]
-    FirstHit,
-    /// Wherever the path from the camera has met only perfect mirrors: ray differentials are
-    /// reflected at each mirror ([`crate::differentials`]). Renders as `FirstHit` in scenes
-    /// without mirrors.
-    All,
-    /// Nowhere: every glint material evaluates its smooth limit (with its glint sampler).
-    Never,
-}
-
-/// How a glint material's particles relate across the frames of an animation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum GlintRandomness {
-    /// The same particles in every frame: glints appear, persist and vanish coherently (the
-    /// paper's model).
-    #[default]
-    Coherent,
-    /// A new particle set per frame (the material seed mixed with the frame number), like
-    /// per-frame independent noise in the style of Ershov et al.: for contrast, it flickers.
-    PerFrame,
-}
-
-/// Bloom applied to the PNG (the EXR stays linear): see [`crate::image::RgbImage::bloomed`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Bloom {
-    /// Radiance above which light spreads.
-    pub threshold: f64,
-    /// The Gaussian's standard deviation in pixels.
-    pub radius: f64,
-    /// The factor on the spread light.
-    pub strength: f64,
-}
-
-/// The pixel filter.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum PixelFilter {
-    /// Uniform over the pixel.
-    Box,
-    /// A Gaussian of standard deviation 0.5 pixel truncated at radius 1.5 pixels.
-    #[default]
-    Gaussian,
-}
-
-/// Everything about how an image is rendered (not what is in it).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RenderSettings {
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// Samples per pixel.
-    pub samples_per_pixel: u32,
-    /// The longest path, in bounces (1 = direct light only).
-    pub max_depth: u32,
-    /// Path tracing or direct illumination.
-    pub integrator: IntegratorKind,
-    /// How direct light is estimated.
-    pub light_strategy: LightStrategy,
-    /// Where glints use footprints.
-    pub glint_footprints: GlintFootprints,
-    /// The footprint's size in pixels (1: the pixel's own footprint).
-    pub footprint_scale: f64,
-    /// The pixel filter.
-    pub filter: PixelFilter,
-    /// Exposure of the PNG in stops.
-    pub exposure: f64,
-    /// The sampler seed.
-    pub seed: u64,
-    /// Bounces before Russian roulette may end a path.
-    pub roulette_depth: u32,
-    /// Coherent particles across frames, or a new set per frame.
-    pub glint_randomness: GlintRandomness,
-    /// Bloom on the PNG, if any.
-    pub bloom: Option<Bloom>,
-    /// Sphere lights at glint hits with a footprint are shaded by one query in the light's own
-    /// cone instead of light samples through the material's γ (see [`crate::light_cone`]).
-    pub glint_light_cones: bool,
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        Self {
-            width: 640,
-            height: 360,
-            samples_per_pixel: 16,
-            max_depth: 5,
-            integrator: IntegratorKind::Path,
-            light_strategy: LightStrategy::Mis,
-            glint_footprints: GlintFootprints::FirstHit,
-            footprint_scale: 1.0,
-            filter: PixelFilter::Gaussian,
-            exposure: 0.0,
-            seed: 0,
-            roulette_depth: 3,
-            glint_randomness: GlintRandomness::Coherent,
-            bloom: None,
-            glint_light_cones: false,
-        }
-    }
-}
+use crate::settings::{
+    GlintFootprints, IntegratorKind, LightStrategy, PixelFilter, RenderSettings,
+};
+use crate::shape::Ray;
 
 /// The power heuristic with β = 2 for one sample of each technique.
 #[must_use]
@@ -160,78 +35,6 @@ pub fn power_heuristic(pdf_this: f64, pdf_other: f64) -> f64 {
         1.0
     } else {
         a / (a + b)
-    }
-}
-
-/// The ray reflected by a perfect mirror at `surface` (about the shading normal of `frame`),
-/// or `None` when it would leave below the geometric normal.
-pub(crate) fn mirror_reflection(
-    surface: &SurfaceHit,
-    frame: &Frame,
-    geometric_normal: DVec3,
-    incoming: &Ray,
-) -> Option<Ray> {
-    let direction = reflect(incoming.direction, frame.n);
-    (direction.dot(geometric_normal) > 0.0).then(|| Ray {
-        origin: offset_origin(surface.point, geometric_normal, direction),
-        direction,
-    })
-}
-
-/// The ray differential `incoming` carried through the mirror bounce at `surface` of
-/// `primitive` onto `reflected` (see [`crate::differentials`]), or `None` when it is lost.
-pub(crate) fn mirror_differential(
-    scene: &Scene,
-    primitive: &Primitive,
-    surface: &SurfaceHit,
-    incoming: &RayDifferential,
-    reflected: Ray,
-) -> Option<RayDifferential> {
-    let dn = normal_derivatives(&primitive.geometry, scene.accelerator.meshes(), surface);
-    reflected_differential(surface, dn, incoming, reflected)
-}
-
-/// A local shading frame: z the shading normal, x along ∂p/∂u.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Frame {
-    pub(crate) t: DVec3,
-    pub(crate) b: DVec3,
-    pub(crate) n: DVec3,
-}
-
-impl Frame {
-    /// Two-sided shading: the geometric normal and the shading frame turned to face the side
-    /// a ray travelling along `direction` arrives from.
-    pub(crate) fn facing(surface: &SurfaceHit, direction: DVec3) -> (DVec3, Self) {
-        let facing = if direction.dot(surface.geometric_normal) > 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        (
-            surface.geometric_normal * facing,
-            Self::new(surface.shading_normal * facing, surface.dpdu),
-        )
-    }
-
-    pub(crate) fn new(n: DVec3, dpdu: DVec3) -> Self {
-        let t = dpdu - n * n.dot(dpdu);
-        let t = if t.length_squared() > 1e-24 * dpdu.length_squared().max(1e-300) && t.is_finite() {
-            t.normalize()
-        } else {
-            orthonormal_basis(n).0
-        };
-        Self {
-            t,
-            b: n.cross(t),
-            n,
-        }
-    }
-    pub(crate) fn to_local(self, w: DVec3) -> DVec3 {
-        DVec3::new(w.dot(self.t), w.dot(self.b), w.dot(self.n))
-    }
-    fn to_world(self, w: DVec3) -> DVec3 {
-        w.x * self.t + w.y * self.b + w.z * self.n
     }
 }
 
@@ -257,16 +60,6 @@ fn counters_of(counters: &mut Vec<GlintCounters>, index: usize) -> &mut GlintCou
         counters.resize(index + 1, GlintCounters::default());
     }
     &mut counters[index]
-}
-
-/// A ray origin on the side of the surface that `direction` leaves by.
-pub(crate) fn offset_origin(point: DVec3, normal: DVec3, direction: DVec3) -> DVec3 {
-    let eps = 1e-9 * (1.0 + point.abs().max_element());
-    if direction.dot(normal) >= 0.0 {
-        point + eps * normal
-    } else {
-        point - eps * normal
-    }
 }
 
 /// The most perfect mirrors [`EmissionWeighting::gains_beyond`] follows before it answers

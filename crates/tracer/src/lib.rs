@@ -18,8 +18,7 @@
 //!   environment lights.
 //! - [`integrator`]: direct illumination and path tracing with next-event estimation, multiple
 //!   importance sampling (power heuristic) and Russian roulette.
-//! - [`mirror_check`]: the check that a flat mirror makes a virtual camera for footprints (run
-//!   small in tests, large by `cargo xtask validate`).
+//! - [`settings`]: how an image is rendered ([`RenderSettings`]), as opposed to what is in it.
 //! - [`film`]: pixel filters, tiles rendered in parallel with per-pixel seeded samplers (the
 //!   image is bit-identical for any thread count), EXR and PNG output.
 //! - [`limits`]: what the tracer accepts (magnitudes, sizes, counts), checked where values
@@ -73,6 +72,7 @@
 #![deny(missing_docs)]
 
 pub mod accel;
+mod bounce;
 pub mod camera;
 pub mod differentials;
 pub mod distribution;
@@ -87,16 +87,16 @@ pub mod light_cone;
 pub mod limits;
 pub mod material;
 pub mod mesh;
-pub mod mirror_check;
 pub mod plan;
 pub mod sampler;
 pub mod scene;
 pub mod scene_file;
+pub mod settings;
 pub mod shape;
 
 pub use error::TracerError;
 pub use film::{RenderOutput, RenderStatistics, render};
-pub use integrator::{
+pub use scene::Scene;
+pub use settings::{
     Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, RenderSettings,
 };
-pub use scene::Scene;

@@ -33,8 +33,8 @@
 use glam::{DVec2, DVec3};
 use glint_brdf::{DiscreteBrdf, Footprint, QueryScratch};
 
+use crate::bounce::{Frame, mirror_differential, mirror_reflection};
 use crate::camera::{RayDifferential, texture_footprint};
-use crate::integrator::{Frame, mirror_differential, mirror_reflection};
 use crate::material::{GlintMaterial, Material};
 use crate::sampler::{PixelSampler, uniform_index};
 use crate::scene::Scene;

@@ -5,9 +5,9 @@ use glam::DVec3;
 
 use crate::accel::{Accelerator, PrimitiveHit};
 use crate::camera::Camera;
-use crate::integrator::RenderSettings;
 use crate::light::Light;
 use crate::material::Material;
+use crate::settings::RenderSettings;
 use crate::shape::Ray;
 
 /// A scene ready to render.

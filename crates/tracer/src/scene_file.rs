@@ -26,15 +26,15 @@ use crate::accel::{Accelerator, Geometry, Primitive};
 use crate::camera::{Camera, CameraPose, Keyframe, pose_problem};
 use crate::error::TracerError;
 use crate::image::RgbImage;
-use crate::integrator::{
-    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, PixelFilter,
-    RenderSettings,
-};
 use crate::light::{EnvironmentMap, Light};
 use crate::limits::{self, echo};
 use crate::material::{GlintMaterial, Material, Mirror, Plastic, Texture};
 use crate::mesh::Mesh;
 use crate::scene::Scene;
+use crate::settings::{
+    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, PixelFilter,
+    RenderSettings,
+};
 use crate::shape::{Rectangle, Sphere};
 
 /// A glint material's `negligible_count` when the scene file gives none: queries provably

@@ -1,11 +1,11 @@
 //! Footprints through a flat mirror, from the definition: a flat mirror makes a virtual camera
-//! (see `glint_tracer::mirror_check`). Small here; `cargo xtask validate` runs it larger.
+//! (see `glint_tests::mirror_check`). Small here; `cargo xtask validate` runs it larger.
 
+use glint_tests::mirror_check::{MirrorCheck, PanelView, render_panel};
 use glint_tracer::GlintFootprints;
-use glint_tracer::mirror_check::{MirrorCheck, PanelView, render_panel};
 
 /// The glittery panel seen in the mirror with `"all"` matches the virtual camera's direct view
-/// pixel by pixel (correlation of the glints, [`glint_tracer::mirror_check::detail`]: 0.95
+/// pixel by pixel (correlation of the glints, [`glint_tests::mirror_check::detail`]: 0.95
 /// measured at 16 spp, the rest is noise; mean luminance within 0.1%), and does not under
 /// `"first_hit"` (smooth in the mirror: 0.23) nor from a camera moved sideways by eight pixels
 /// (0.03).
@@ -35,7 +35,7 @@ fn all_is_first_hit_without_mirrors() {
 /// Dense glints (N = 10¹²) in the mirror converge to the smooth limit.
 #[test]
 fn dense_glints_in_a_mirror_are_smooth() {
-    let (mean, worst) = glint_tracer::mirror_check::smooth_agreement([32, 32, 2], 1e12).unwrap();
+    let (mean, worst) = glint_tests::mirror_check::smooth_agreement([32, 32, 2], 1e12).unwrap();
     eprintln!("mean {mean}, worst block {worst}");
     assert!(
         mean < 0.03 && worst < 0.08,

@@ -1,5 +1,5 @@
 //! The definition check of footprints through mirrors: a flat mirror makes a virtual camera.
-//! Run small by the tracer's tests (`tests/mirror_footprints.rs`) and large by
+//! Run small by `tests/footprints.rs` and large by
 //! `cargo xtask validate`.
 //!
 //! A glittery panel stands behind the camera, facing a flat, Fresnel-free mirror (reflectance 1)
@@ -14,12 +14,11 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use crate::camera::CameraPose;
-use crate::image::RgbImage;
-use crate::integrator::GlintFootprints;
-use crate::light::luminance;
-use crate::scene_file::parse_scene;
-use crate::{TracerError, render};
+use glint_tracer::camera::CameraPose;
+use glint_tracer::image::RgbImage;
+use glint_tracer::light::luminance;
+use glint_tracer::scene_file::parse_scene;
+use glint_tracer::{GlintFootprints, TracerError, render};
 
 /// How a render sees the panel.
 #[derive(Clone, Copy, Debug, PartialEq)]
