@@ -1,13 +1,14 @@
-//! `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--out DIR] [--frames A..B]
-//! [--smooth] [--glint-footprints all|first_hit|never] [--glint-light-cones] [--threads N]`:
-//! renders a scene file to linear EXR, tone-mapped PNG and a JSON file of Table-1 statistics,
-//! with a progress bar.
+//! `cargo xtask render [SCENE] [--spp N] [--resolution WxH] [--pixel-bounds X0,X1,Y0,Y1]
+//! [--out DIR] [--frames A..B] [--smooth] [--glint-footprints all|first_hit|never]
+//! [--glint-light-cones] [--threads N]`: renders a scene file to linear EXR, tone-mapped PNG and
+//! a JSON file of Table-1 statistics, with a progress bar, through `glint_tracer::job` (as
+//! Python's `glint.render` does).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use glint_tracer::scene_file::load_scene;
-use glint_tracer::{RenderStatistics, render};
+use glint_tracer::PixelBounds;
+use glint_tracer::job::{RenderJob, RenderOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// The scene rendered when none is named.
@@ -59,6 +60,12 @@ pub(crate) struct RenderArgs {
     /// through perfect mirrors) or `never` (default: the scene's).
     #[arg(long, value_name = "all|first_hit|never", value_parser = parse_glint_footprints)]
     pub(crate) glint_footprints: Option<glint_tracer::GlintFootprints>,
+    /// Render only pixels X0..X1 × Y0..Y1 of the image (half-open, row 0 at the top, as
+    /// pbrt's `--pixelbounds`): exactly those pixels of the full render, bit for bit. Outputs
+    /// are named `<scene>[_<frame>]_pxX0-X1_Y0-Y1` and record their bounds (the EXR's data
+    /// window, the JSON's `pixel_bounds`).
+    #[arg(long, value_name = "X0,X1,Y0,Y1", value_parser = parse_pixel_bounds)]
+    pub(crate) pixel_bounds: Option<PixelBounds>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
@@ -77,6 +84,21 @@ fn parse_resolution(text: &str) -> Result<(u32, u32), String> {
             .map_err(|e| format!("`{s}` in `{text}`: {e}"))
     };
     Ok((parse(w)?, parse(h)?))
+}
+
+fn parse_pixel_bounds(text: &str) -> Result<PixelBounds, String> {
+    let numbers = text
+        .split(',')
+        .map(|s| {
+            s.trim()
+                .parse::<u32>()
+                .map_err(|e| format!("`{s}` in `{text}`: {e}"))
+        })
+        .collect::<Result<Vec<u32>, String>>()?;
+    let [x0, x1, y0, y1] = numbers[..] else {
+        return Err(format!("`{text}` is not X0,X1,Y0,Y1"));
+    };
+    Ok(PixelBounds { x0, x1, y0, y1 })
 }
 
 fn parse_integrator(text: &str) -> Result<glint_tracer::IntegratorKind, String> {
@@ -157,51 +179,6 @@ fn check_camera(
     Ok(())
 }
 
-/// The statistics as one JSON object.
-pub(crate) fn statistics_json(
-    scene: &Path,
-    frame: i64,
-    settings: &glint_tracer::RenderSettings,
-    smooth: bool,
-    threads: usize,
-    s: &RenderStatistics,
-) -> serde_json::Value {
-    serde_json::json!({
-        "scene": scene.display().to_string(),
-        "frame": frame,
-        "resolution": [settings.width, settings.height],
-        "spp": settings.samples_per_pixel,
-        "smooth": smooth,
-        "glint_footprints": match settings.glint_footprints {
-            glint_tracer::GlintFootprints::FirstHit => "first_hit",
-            glint_tracer::GlintFootprints::All => "all",
-            glint_tracer::GlintFootprints::Never => "never",
-        },
-        "threads": threads,
-        "seconds": s.seconds,
-        "rays": s.rays,
-        "rays_per_second": s.rays_per_second(),
-        "glint_queries": s.glint.queries,
-        "negligible_queries": s.glint.negligible_queries,
-        "negligible_bound": s.glint.negligible_bound,
-        "nodes_per_query": s.nodes_per_query(),
-        "overlapping_nodes_per_query": s.glint.overlapping_nodes_per_query(),
-        "particles_per_query": s.particles_per_query(),
-        "queries_per_second": s.queries_per_second(),
-        "clamped_samples": s.clamped_samples,
-        "discarded_samples": s.discarded_samples,
-        "materials": s.glint_by_material.iter().map(|(name, c)| serde_json::json!({
-            "name": name,
-            "glint_queries": c.queries,
-            "negligible_queries": c.negligible_queries,
-            "negligible_bound": c.negligible_bound,
-            "nodes_per_query": c.nodes_per_query(),
-            "overlapping_nodes_per_query": c.overlapping_nodes_per_query(),
-            "particles_per_query": c.particles_per_query(),
-        })).collect::<Vec<_>>(),
-    })
-}
-
 pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let scene_path = args.scene.clone().unwrap_or_else(default_scene);
     let threads = args
@@ -215,49 +192,20 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         .build()
         .context("cannot start the worker threads")?;
     crate::assets::ensure()?;
-    let build_start = std::time::Instant::now();
-    let mut scene = load_scene(&scene_path)?;
-    let build_seconds = build_start.elapsed().as_secs_f64();
-    // Eq. 11's plan per glint material (before `--smooth` removes the glints).
-    let plans: serde_json::Map<String, serde_json::Value> = scene
-        .material_names
-        .iter()
-        .zip(&scene.materials)
-        .filter(|(_, m)| m.has_glints())
-        .map(|(name, m)| (name.clone(), m.expected_footprint_areas().into()))
-        .collect();
-    if let Some(count) = args.negligible_count {
-        scene
-            .set_negligible_count(count)
-            .context("--negligible-count")?;
-    }
-    if args.smooth {
-        scene.make_smooth();
-    }
-    let mut settings = scene.settings;
-    if args.per_frame_glints {
-        settings.glint_randomness = glint_tracer::GlintRandomness::PerFrame;
-    }
-    let base_materials = scene.materials.clone();
-    if args.glint_light_cones {
-        settings.glint_light_cones = true;
-    }
-    if let Some(spp) = args.spp {
-        settings.samples_per_pixel = spp;
-    }
-    if let Some(depth) = args.max_depth {
-        settings.max_depth = depth;
-    }
-    if let Some(integrator) = args.integrator {
-        settings.integrator = integrator;
-    }
-    if let Some(footprints) = args.glint_footprints {
-        settings.glint_footprints = footprints;
-    }
-    if let Some((w, h)) = args.resolution {
-        settings.width = w;
-        settings.height = h;
-    }
+    let options = RenderOptions {
+        samples_per_pixel: args.spp,
+        resolution: args.resolution,
+        pixel_bounds: args.pixel_bounds,
+        max_depth: args.max_depth,
+        integrator: args.integrator,
+        glint_footprints: args.glint_footprints,
+        negligible_count: args.negligible_count,
+        smooth: args.smooth,
+        per_frame_glints: args.per_frame_glints,
+        glint_light_cones: args.glint_light_cones,
+    };
+    let mut job = RenderJob::load(&scene_path, options)?;
+    let settings = job.settings;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let stem = scene_path
@@ -268,21 +216,23 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     } else {
         stem
     };
-    check_camera(&scene, frame_range(args.frames))?;
+    check_camera(&job.scene, frame_range(args.frames))?;
+    let bounds = settings.bounds();
     println!(
-        "{}: {}x{}, {} spp, {} thread(s){}; scene built in {:.2} s",
+        "{}: {}x{}{}, {} spp, {} thread(s){}; scene built in {:.2} s",
         scene_path.display(),
         settings.width,
         settings.height,
+        settings.pixel_bounds.map_or_else(String::new, |b| format!(
+            " (pixels {}..{} x {}..{})",
+            b.x0, b.x1, b.y0, b.y1
+        )),
         settings.samples_per_pixel,
         threads,
         if args.smooth { ", smooth" } else { "" },
-        build_seconds
+        job.build_seconds
     );
     for frame in frame_range(args.frames) {
-        if settings.glint_randomness == glint_tracer::GlintRandomness::PerFrame {
-            scene.reseed_glints_for_frame(&base_materials, frame)?;
-        }
         let bar = if args.quiet {
             ProgressBar::hidden()
         } else {
@@ -300,24 +250,25 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
             bar.set_length(total);
             bar.set_position(done);
         };
-        let output = pool.install(|| render(&scene, &settings, frame as f64, &progress))?;
+        let never = std::sync::atomic::AtomicBool::new(false);
+        let output = pool.install(|| job.render_frame(frame, &progress, &never))?;
         bar.finish_and_clear();
-        let name = if args.frames.is_some() {
+        let mut name = if args.frames.is_some() {
             format!("{stem}_{frame:04}")
         } else {
             stem.clone()
         };
+        if settings.pixel_bounds.is_some() {
+            name = format!(
+                "{name}_px{}-{}_{}-{}",
+                bounds.x0, bounds.x1, bounds.y0, bounds.y1
+            );
+        }
         let exr = args.out.join(format!("{name}.exr"));
         let png = args.out.join(format!("{name}.png"));
         let json = args.out.join(format!("{name}.json"));
-        output.image.write_exr(&exr)?;
-        crate::scenes::display_image(&output.image, &settings)
-            .write_png(&png, settings.exposure)?;
+        job.write_outputs(&output, threads, [&exr, &png, &json])?;
         let s = output.statistics;
-        let mut stats = statistics_json(&scene_path, frame, &settings, args.smooth, threads, &s);
-        stats["expected_footprint_areas"] = plans.clone().into();
-        std::fs::write(&json, serde_json::to_string_pretty(&stats)? + "\n")
-            .with_context(|| format!("cannot write {}", json.display()))?;
         println!("frame {frame}: {s} → {}", png.display());
         if s.clamped_samples > 0 || s.discarded_samples > 0 {
             eprintln!(

@@ -83,14 +83,6 @@ fn quick_settings(mut settings: RenderSettings, quick: bool) -> RenderSettings {
     settings
 }
 
-/// The image as shown in a PNG: with the settings' bloom, if any.
-pub(crate) fn display_image(image: &RgbImage, settings: &RenderSettings) -> RgbImage {
-    match settings.bloom {
-        Some(b) => image.bloomed(b.threshold, b.radius, b.strength),
-        None => image.clone(),
-    }
-}
-
 /// The scene files in `scenes/`, sorted by name.
 pub(crate) fn scene_files() -> anyhow::Result<Vec<PathBuf>> {
     let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
@@ -139,8 +131,8 @@ pub(crate) fn run(args: &ScenesArgs) -> anyhow::Result<()> {
         let without = render(&smooth, &settings, 0.0, &|_, _| {})?;
         let (g, s) = (with_glints.statistics, without.statistics);
         println!("  glint:  {g}\n  smooth: {s}");
-        let shown = display_image(&with_glints.image, &settings);
-        let shown_smooth = display_image(&without.image, &settings);
+        let shown = glint_tracer::job::display_image(&with_glints.image, &settings);
+        let shown_smooth = glint_tracer::job::display_image(&without.image, &settings);
         shown.write_png(&args.out.join(format!("{name}.png")), settings.exposure)?;
         shown_smooth.write_png(
             &args.out.join(format!("{name}_smooth.png")),

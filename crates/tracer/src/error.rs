@@ -54,6 +54,8 @@ pub enum TracerError {
         /// What is wrong with it.
         problem: String,
     },
+    /// The render was cancelled before it finished (see [`crate::film::render_until`]).
+    Cancelled,
 }
 
 impl fmt::Display for TracerError {
@@ -83,6 +85,7 @@ impl fmt::Display for TracerError {
             Self::Settings { setting, problem } => {
                 write!(f, "render setting {setting}: {}", echo_lines(problem))
             }
+            Self::Cancelled => write!(f, "the render was cancelled"),
         }
     }
 }

@@ -1,6 +1,10 @@
-//! The render loop: the image in 16 × 16 tiles over rayon's threads, each pixel with its own
-//! seeded sampler, so that the result is bit-identical for any thread count and tile order.
+//! The render loop: the image (or its [`PixelBounds`]) in 16 × 16 tiles over rayon's threads,
+//! each pixel with its own seeded sampler and samples that land in their own pixel only (the
+//! filter jitters the sample within the pixel's filter support; nothing is splatted into
+//! neighbours), so that the result is bit-identical for any thread count, tile order and
+//! pixel bounds.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use glam::{DVec2, DVec3};
@@ -14,7 +18,7 @@ use crate::limits::MAX_SAMPLE_RADIANCE;
 use crate::material::GlintCounters;
 use crate::sampler::{MAX_SAMPLES_PER_PIXEL, PixelSampler};
 use crate::scene::Scene;
-use crate::settings::RenderSettings;
+use crate::settings::{PixelBounds, RenderSettings};
 
 /// The tile edge in pixels.
 const TILE: u32 = 16;
@@ -112,8 +116,10 @@ fn admit(radiance: DVec3, clamped: &mut u64, discarded: &mut u64) -> DVec3 {
 /// A rendered image with its statistics.
 #[derive(Clone, Debug)]
 pub struct RenderOutput {
-    /// Linear radiance per pixel.
+    /// Linear radiance per pixel of [`RenderOutput::bounds`] (row 0 is the bounds' top row).
     pub image: RgbImage,
+    /// The pixels rendered, in the full image of the settings' resolution.
+    pub bounds: PixelBounds,
     /// Counts and time.
     pub statistics: RenderStatistics,
 }
@@ -161,6 +167,12 @@ pub fn validate_settings(settings: &RenderSettings) -> Result<(), TracerError> {
     if !settings.exposure.is_finite() {
         return fail("exposure", "must be finite".into());
     }
+    if let Some(problem) = settings
+        .pixel_bounds
+        .and_then(|b| b.problem(settings.width, settings.height))
+    {
+        return fail("pixel_bounds", problem);
+    }
     Ok(())
 }
 
@@ -177,6 +189,22 @@ pub fn render(
     frame: f64,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput, TracerError> {
+    render_until(scene, settings, frame, progress, &AtomicBool::new(false))
+}
+
+/// [`render`], stopped when `cancelled` becomes true: pixels not yet started are skipped and
+/// the render returns [`TracerError::Cancelled`] within about one pixel's samples (the Python
+/// package sets it on Ctrl-C).
+///
+/// # Errors
+/// As [`render`], and [`TracerError::Cancelled`].
+pub fn render_until(
+    scene: &Scene,
+    settings: &RenderSettings,
+    frame: f64,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    cancelled: &AtomicBool,
+) -> Result<RenderOutput, TracerError> {
     validate_settings(settings)?;
     let start = Instant::now();
     let (width, height) = (settings.width, settings.height);
@@ -184,8 +212,11 @@ pub fn render(
         .camera
         .checked_view(frame, width, height)
         .map_err(|problem| TracerError::Camera { frame, problem })?;
-    let tiles_x = width.div_ceil(TILE);
-    let tiles_y = height.div_ceil(TILE);
+    // Tiles cover the bounds from their corner; a pixel's value does not depend on its tile.
+    let bounds = settings.bounds();
+    let (crop_width, crop_height) = (bounds.width(), bounds.height());
+    let tiles_x = crop_width.div_ceil(TILE);
+    let tiles_y = crop_height.div_ceil(TILE);
     let total = u64::from(tiles_x * tiles_y);
     let done = std::sync::atomic::AtomicU64::new(0);
     // Each worker keeps one query scratch across its tiles (its memo of split counts serves
@@ -194,8 +225,11 @@ pub fn render(
     let tiles: Vec<(Vec<DVec3>, PathState)> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map_init(QueryScratch::new, |scratch, tile| {
-            let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
-            let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
+            let (x0, y0) = (
+                bounds.x0 + (tile % tiles_x) * TILE,
+                bounds.y0 + (tile / tiles_x) * TILE,
+            );
+            let (x1, y1) = ((x0 + TILE).min(bounds.x1), (y0 + TILE).min(bounds.y1));
             let mut state = PathState {
                 scratch: std::mem::take(scratch),
                 ..PathState::default()
@@ -203,6 +237,9 @@ pub fn render(
             let mut pixels = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
             for y in y0..y1 {
                 for x in x0..x1 {
+                    if cancelled.load(Ordering::Relaxed) {
+                        break;
+                    }
                     let mut sum = DVec3::ZERO;
                     for index in 0..settings.samples_per_pixel {
                         let mut sampler = PixelSampler::new(settings.seed, x, y, index);
@@ -219,22 +256,26 @@ pub fn render(
                     pixels.push(sum / f64::from(settings.samples_per_pixel));
                 }
             }
-            let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
             progress(finished, total);
             *scratch = std::mem::take(&mut state.scratch);
             (pixels, state)
         })
         .collect();
-    let mut image = RgbImage::filled(width as usize, height as usize, DVec3::ZERO);
+    if cancelled.load(Ordering::Relaxed) {
+        return Err(TracerError::Cancelled);
+    }
+    let mut image = RgbImage::filled(crop_width as usize, crop_height as usize, DVec3::ZERO);
     let mut statistics = RenderStatistics::default();
     let mut by_material = vec![GlintCounters::default(); scene.materials.len()];
     for (tile, (pixels, state)) in tiles.iter().enumerate() {
         let tile = tile as u32;
+        // Tile corners relative to the bounds.
         let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
-        let tile_width = (x0 + TILE).min(width) - x0;
+        let tile_width = (x0 + TILE).min(crop_width) - x0;
         for (i, p) in pixels.iter().enumerate() {
             let (x, y) = (x0 + i as u32 % tile_width, y0 + i as u32 / tile_width);
-            image.pixels[(y * width + x) as usize] = *p;
+            image.pixels[(y * crop_width + x) as usize] = *p;
         }
         for (m, counters) in state.counters.iter().enumerate() {
             by_material[m].add(counters);
@@ -255,9 +296,13 @@ pub fn render(
         }
     }
     statistics.samples =
-        u64::from(width) * u64::from(height) * u64::from(settings.samples_per_pixel);
+        u64::from(crop_width) * u64::from(crop_height) * u64::from(settings.samples_per_pixel);
     statistics.seconds = start.elapsed().as_secs_f64();
-    Ok(RenderOutput { image, statistics })
+    Ok(RenderOutput {
+        image,
+        bounds,
+        statistics,
+    })
 }
 
 #[cfg(test)]
@@ -696,10 +741,8 @@ irradiance = 1
         }
     }
 
-    /// The image is bit-identical for one thread and for several, glints included.
-    #[test]
-    fn images_do_not_depend_on_the_thread_count() {
-        let text = r#"
+    /// A glittery floor under a sphere light, path traced with the Gaussian filter.
+    const GLITTER_FLOOR: &str = r#"
 [render]
 resolution = [40, 24]
 spp = 2
@@ -723,6 +766,11 @@ center = [0, 1, -2]
 radius = 0.1
 power = 20
 "#;
+
+    /// The image is bit-identical for one thread and for several, glints included.
+    #[test]
+    fn images_do_not_depend_on_the_thread_count() {
+        let text = GLITTER_FLOOR;
         let s = scene(text);
         let outputs: Vec<RenderOutput> = [1, 2, 3]
             .into_iter()
@@ -752,5 +800,96 @@ power = 20
             );
         }
         assert!(mean(&images[0]).x > 0.0, "the glints must show");
+    }
+
+    fn same_bits(a: &[DVec3], b: &[DVec3]) -> bool {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits))
+    }
+
+    /// Pixel bounds render exactly the full image's pixels there, bit for bit, whatever the
+    /// bounds' alignment to tiles (single pixels, bounds straddling tiles, the whole image), and
+    /// count only their own samples.
+    #[test]
+    fn pixel_bounds_give_the_full_images_pixels_bit_for_bit() {
+        let s = scene(GLITTER_FLOOR);
+        let full = render(&s, &s.settings, 0.0, &|_, _| {}).unwrap();
+        assert_eq!(full.bounds, PixelBounds::full(40, 24));
+        for [x0, x1, y0, y1] in [
+            [0, 40, 0, 24],
+            [3, 21, 5, 22],
+            [39, 40, 23, 24],
+            [16, 32, 0, 24],
+        ] {
+            let bounds = PixelBounds { x0, x1, y0, y1 };
+            let mut settings = s.settings;
+            settings.pixel_bounds = Some(bounds);
+            let crop = render(&s, &settings, 0.0, &|_, _| {}).unwrap();
+            assert_eq!(crop.bounds, bounds);
+            assert_eq!(
+                (crop.image.width, crop.image.height),
+                ((x1 - x0) as usize, (y1 - y0) as usize)
+            );
+            let expected: Vec<DVec3> = (y0..y1)
+                .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+                .map(|(x, y)| full.image.pixels[(y * 40 + x) as usize])
+                .collect();
+            assert!(same_bits(&crop.image.pixels, &expected), "{bounds:?}");
+            assert_eq!(
+                crop.statistics.samples,
+                u64::from((x1 - x0) * (y1 - y0)) * u64::from(settings.samples_per_pixel)
+            );
+        }
+    }
+
+    /// Bounds that are empty or reach outside the image are errors naming `pixel_bounds`, from
+    /// the settings and from a scene file.
+    #[test]
+    fn bad_pixel_bounds_are_named_errors() {
+        let s = scene(GLITTER_FLOOR);
+        for [x0, x1, y0, y1] in [[5, 5, 0, 4], [0, 41, 0, 24], [0, 40, 10, 25], [7, 3, 0, 1]] {
+            let mut settings = s.settings;
+            settings.pixel_bounds = Some(PixelBounds { x0, x1, y0, y1 });
+            let error = render(&s, &settings, 0.0, &|_, _| {})
+                .unwrap_err()
+                .to_string();
+            assert!(error.contains("pixel_bounds"), "{error}");
+            let text = GLITTER_FLOOR.replace(
+                "spp = 2",
+                &format!("spp = 2\npixel_bounds = [{x0}, {x1}, {y0}, {y1}]"),
+            );
+            let error = parse_scene(&text, Path::new("bounds.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(error.contains("render.pixel_bounds"), "{error}");
+        }
+        let text = GLITTER_FLOOR.replace("spp = 2", "spp = 2\npixel_bounds = [1, 2, 3]");
+        assert!(parse_scene(&text, Path::new("b.toml")).is_err());
+        let text = GLITTER_FLOOR.replace("spp = 2", "spp = 2\npixel_bounds = [8, 24, 4, 20]");
+        let s = scene(&text);
+        assert_eq!(
+            s.settings.pixel_bounds,
+            Some(PixelBounds {
+                x0: 8,
+                x1: 24,
+                y0: 4,
+                y1: 20
+            })
+        );
+    }
+
+    /// A cancelled render stops and says so; an uncancelled one is the plain render.
+    #[test]
+    fn a_cancelled_render_returns_cancelled() {
+        let s = scene(GLITTER_FLOOR);
+        let cancelled = AtomicBool::new(true);
+        let result = render_until(&s, &s.settings, 0.0, &|_, _| {}, &cancelled);
+        assert_eq!(result.unwrap_err(), TracerError::Cancelled);
+        let running = AtomicBool::new(false);
+        let a = render_until(&s, &s.settings, 0.0, &|_, _| {}, &running).unwrap();
+        let b = render(&s, &s.settings, 0.0, &|_, _| {}).unwrap();
+        assert!(same_bits(&a.image.pixels, &b.image.pixels));
     }
 }

@@ -7,6 +7,7 @@ use glam::{DVec2, DVec3};
 
 use crate::error::TracerError;
 use crate::limits;
+use crate::settings::PixelBounds;
 
 /// Checks an image's size from its header against [`limits::MAX_IMAGE_SIDE`] and
 /// [`limits::MAX_IMAGE_PIXELS`].
@@ -366,41 +367,84 @@ impl RgbImage {
     /// Writes a linear 32-bit float RGB OpenEXR file.
     ///
     /// # Errors
-    /// [`TracerError::Output`] when the file cannot be written, or when a pixel is not finite
-    /// or beyond the 32-bit float range (it would be written as infinity); rendered images
-    /// never are (see [`crate::render`]).
+    /// As [`RgbImage::write_exr_in`].
     pub fn write_exr(&self, path: &Path) -> Result<(), TracerError> {
-        use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+        let (width, height) = (self.width as u32, self.height as u32);
+        self.write_exr_in(path, PixelBounds::full(width, height), width, height)
+    }
+
+    /// Writes a linear 32-bit float RGB OpenEXR file of the pixels `bounds` of a `width` ×
+    /// `height` image: OpenEXR's data window is the bounds, its display window the whole image
+    /// (as pbrt writes crops), so the file records where its pixels belong.
+    ///
+    /// # Errors
+    /// [`TracerError::Output`] when the file cannot be written, when the bounds do not match
+    /// the image's size or lie outside `width` × `height`, or when a pixel is not finite or
+    /// beyond the 32-bit float range (it would be written as infinity); rendered images never
+    /// are (see [`crate::render`]).
+    pub fn write_exr_in(
+        &self,
+        path: &Path,
+        bounds: PixelBounds,
+        width: u32,
+        height: u32,
+    ) -> Result<(), TracerError> {
+        use exr::prelude::{
+            Encoding, Image, ImageAttributes, IntegerBounds, Layer, LayerAttributes,
+            SpecificChannels, Vec2, WritableImage,
+        };
+        let error = |problem: String| TracerError::Output {
+            path: path.to_path_buf(),
+            problem,
+        };
+        if let Some(problem) = bounds.problem(width, height) {
+            return Err(error(format!("pixel bounds {problem}")));
+        }
+        if (bounds.width() as usize, bounds.height() as usize) != (self.width, self.height) {
+            return Err(error(format!(
+                "the image is {}x{} but its pixel bounds cover {}x{}",
+                self.width,
+                self.height,
+                bounds.width(),
+                bounds.height()
+            )));
+        }
         let largest = f64::from(f32::MAX);
         if let Some(i) = self
             .pixels
             .iter()
             .position(|p| !(p.is_finite() && p.abs().max_element() <= largest))
         {
-            return Err(TracerError::Output {
-                path: path.to_path_buf(),
-                problem: format!(
-                    "pixel ({}, {}) is {}: not a finite 32-bit float",
-                    i % self.width.max(1),
-                    i / self.width.max(1),
-                    limits::vector(self.pixels[i])
-                ),
-            });
+            return Err(error(format!(
+                "pixel ({}, {}) is {}: not a finite 32-bit float",
+                i % self.width.max(1),
+                i / self.width.max(1),
+                limits::vector(self.pixels[i])
+            )));
         }
         let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let p = self.pixels[y * self.width + x];
             (p.x as f32, p.y as f32, p.z as f32)
         });
+        // Within OpenEXR's i32 coordinates: sizes are at most 16384 (checked by the film).
+        let corner = Vec2(bounds.x0 as i32, bounds.y0 as i32);
+        let layer = Layer::new(
+            (self.width, self.height),
+            LayerAttributes {
+                layer_position: corner,
+                ..LayerAttributes::default()
+            },
+            Encoding::default(),
+            channels,
+        );
+        let display = IntegerBounds::new((0, 0), (width as usize, height as usize));
         // Sequential compression: parallel compression writes the chunks in the order they
         // finish, so the same pixels would give different files from run to run.
-        Image::from_channels((self.width, self.height), channels)
+        Image::new(ImageAttributes::new(display), layer)
             .write()
             .non_parallel()
             .to_file(path)
-            .map_err(|e| TracerError::Output {
-                path: path.to_path_buf(),
-                problem: e.to_string(),
-            })
+            .map_err(|e| error(e.to_string()))
     }
 
     /// The 8-bit sRGB encoding of the image scaled by 2^`exposure` (clamped to [0, 1]).
@@ -562,6 +606,53 @@ mod tests {
 
     /// Pixels that single precision cannot hold are refused when an EXR is written, never
     /// written as infinities.
+    /// A crop's EXR records where it belongs: its data window is the bounds, its display
+    /// window the full image, and it reads back as the crop's pixels. Bounds that do not match
+    /// the image are refused.
+    #[test]
+    fn crop_exr_files_record_their_bounds() {
+        let dir = std::env::temp_dir().join(format!("glint-exr-crop-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let image = gradient();
+        let (w, h) = (image.width as u32, image.height as u32);
+        let bounds = PixelBounds {
+            x0: 5,
+            x1: 5 + w,
+            y0: 7,
+            y1: 7 + h,
+        };
+        let path = dir.join("crop.exr");
+        image.write_exr_in(&path, bounds, 40, 30).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let meta =
+            exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false).unwrap();
+        let header = &meta.headers[0];
+        assert_eq!(header.own_attributes.layer_position, exr::math::Vec2(5, 7));
+        assert_eq!(header.layer_size, exr::math::Vec2(w as usize, h as usize));
+        assert_eq!(
+            header.shared_attributes.display_window,
+            exr::meta::attribute::IntegerBounds::new((0, 0), (40, 30))
+        );
+        let back = RgbImage::from_exr_bytes(&bytes).unwrap();
+        assert_eq!((back.width, back.height), (image.width, image.height));
+        for (a, b) in back.pixels.iter().zip(&image.pixels) {
+            assert_eq!(*a, a.as_vec3().as_dvec3());
+            assert!((*a - *b).abs().max_element() <= 1e-6 * b.abs().max_element());
+        }
+        let outside = PixelBounds {
+            x1: 41 + w,
+            ..bounds
+        };
+        assert!(image.write_exr_in(&path, outside, 40, 30).is_err());
+        let mismatched = PixelBounds {
+            x1: 4 + w,
+            ..bounds
+        };
+        let error = image.write_exr_in(&path, mismatched, 40, 30).unwrap_err();
+        assert!(error.to_string().contains("pixel bounds cover"), "{error}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
     #[test]
     fn exr_output_refuses_non_finite_pixels() {
         let dir = std::env::temp_dir().join(format!("glint-exr-inf-{}", std::process::id()));

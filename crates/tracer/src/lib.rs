@@ -19,6 +19,8 @@
 //! - [`integrator`]: direct illumination and path tracing with next-event estimation, multiple
 //!   importance sampling (power heuristic) and Russian roulette.
 //! - [`settings`]: how an image is rendered ([`RenderSettings`]), as opposed to what is in it.
+//! - [`job`]: a scene file, the command line's options and frames, as `cargo xtask render` and
+//!   Python's `glint.render` run them (one path, so both give the same bits).
 //! - [`film`]: pixel filters, tiles rendered in parallel with per-pixel seeded samplers (the
 //!   image is bit-identical for any thread count), EXR and PNG output.
 //! - [`limits`]: what the tracer accepts (magnitudes, sizes, counts), checked where values
@@ -82,6 +84,7 @@ pub mod film;
 mod fuzz;
 pub mod image;
 pub mod integrator;
+pub mod job;
 pub mod light;
 pub mod light_cone;
 pub mod limits;
@@ -98,5 +101,6 @@ pub use error::TracerError;
 pub use film::{RenderOutput, RenderStatistics, render};
 pub use scene::Scene;
 pub use settings::{
-    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, RenderSettings,
+    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, PixelBounds,
+    RenderSettings,
 };

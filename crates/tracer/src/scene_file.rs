@@ -32,8 +32,8 @@ use crate::material::{GlintMaterial, Material, Mirror, Plastic, Texture};
 use crate::mesh::Mesh;
 use crate::scene::Scene;
 use crate::settings::{
-    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, PixelFilter,
-    RenderSettings,
+    Bloom, GlintFootprints, GlintRandomness, IntegratorKind, LightStrategy, PixelBounds,
+    PixelFilter, RenderSettings,
 };
 use crate::shape::{Rectangle, Sphere};
 
@@ -149,6 +149,7 @@ struct RenderSection {
     glint_randomness: Option<RandomnessName>,
     bloom: Option<BloomSection>,
     glint_light_cones: Option<bool>,
+    pixel_bounds: Option<[u32; 4]>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize)]
@@ -1238,6 +1239,9 @@ impl Builder<'_> {
         }
         if let Some(cones) = r.glint_light_cones {
             s.glint_light_cones = cones;
+        }
+        if let Some([x0, x1, y0, y1]) = r.pixel_bounds {
+            s.pixel_bounds = Some(PixelBounds { x0, x1, y0, y1 });
         }
         if let Some(b) = r.bloom {
             if !(b.threshold >= 0.0 && b.threshold.is_finite()) {

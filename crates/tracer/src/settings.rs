@@ -71,6 +71,65 @@ pub enum PixelFilter {
     Gaussian,
 }
 
+/// A rectangle of pixels, half-open as pbrt's `--pixelbounds`: columns `x0..x1` and rows
+/// `y0..y1`, row 0 at the top. A render of these bounds gives exactly the same pixels as the
+/// full image (each pixel's samples depend on the pixel alone, see [`crate::film`]), so a
+/// frame may be rendered in pieces on many machines and put together.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PixelBounds {
+    /// The first column.
+    pub x0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// The first row.
+    pub y0: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl PixelBounds {
+    /// The whole `width` × `height` image.
+    #[must_use]
+    pub fn full(width: u32, height: u32) -> Self {
+        Self {
+            x0: 0,
+            x1: width,
+            y0: 0,
+            y1: height,
+        }
+    }
+
+    /// Columns covered.
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.x1.saturating_sub(self.x0)
+    }
+
+    /// Rows covered.
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.y1.saturating_sub(self.y0)
+    }
+
+    /// What is wrong with these bounds in a `width` × `height` image: empty, or reaching
+    /// outside it.
+    #[must_use]
+    pub fn problem(&self, width: u32, height: u32) -> Option<String> {
+        let shown = format!("[{}, {}, {}, {}]", self.x0, self.x1, self.y0, self.y1);
+        if self.x0 >= self.x1 || self.y0 >= self.y1 {
+            Some(format!(
+                "{shown} is empty: [x0, x1, y0, y1] needs x0 < x1 and y0 < y1 (half-open)"
+            ))
+        } else if self.x1 > width || self.y1 > height {
+            Some(format!(
+                "{shown} reaches outside the {width}x{height} image (x1 ≤ {width}, y1 ≤ {height})"
+            ))
+        } else {
+            None
+        }
+    }
+}
+
 /// Everything about how an image is rendered (not what is in it).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -105,6 +164,17 @@ pub struct RenderSettings {
     /// Sphere lights at glint hits with a footprint are shaded by one query in the light's own
     /// cone instead of light samples through the material's γ (see [`crate::light_cone`]).
     pub glint_light_cones: bool,
+    /// Only these pixels of the `width` × `height` image, or all of them (`None`).
+    pub pixel_bounds: Option<PixelBounds>,
+}
+
+impl RenderSettings {
+    /// The pixels a render covers: [`RenderSettings::pixel_bounds`] or the whole image.
+    #[must_use]
+    pub fn bounds(&self) -> PixelBounds {
+        self.pixel_bounds
+            .unwrap_or_else(|| PixelBounds::full(self.width, self.height))
+    }
 }
 
 impl Default for RenderSettings {
@@ -125,6 +195,7 @@ impl Default for RenderSettings {
             glint_randomness: GlintRandomness::Coherent,
             bloom: None,
             glint_light_cones: false,
+            pixel_bounds: None,
         }
     }
 }
