@@ -147,6 +147,23 @@ impl RenderJob {
         })
     }
 
+    /// Renders only `bounds` from now on (`None`: the whole image), as if the job had been
+    /// loaded with them: a farm's worker renders every tile of a frame from one loaded scene.
+    ///
+    /// # Errors
+    /// [`TracerError::Settings`] naming `pixel_bounds` when they are empty or outside the
+    /// image; the job is then unchanged.
+    pub fn set_pixel_bounds(&mut self, bounds: Option<PixelBounds>) -> Result<(), TracerError> {
+        let settings = RenderSettings {
+            pixel_bounds: bounds.or(self.scene.settings.pixel_bounds),
+            ..self.settings
+        };
+        crate::film::validate_settings(&settings)?;
+        self.settings = settings;
+        self.options.pixel_bounds = bounds;
+        Ok(())
+    }
+
     /// Renders camera frame `frame`; `progress(done, total)` is called as tiles finish, and
     /// the render stops when `cancelled` becomes true ([`crate::film::render_until`]).
     ///
@@ -192,15 +209,21 @@ impl RenderJob {
         display_image(image, &self.settings)
     }
 
-    /// The frame's summary: the job's settings, the pixel bounds, the statistics (the paper's
-    /// Table 1 quantities) and the planned footprint areas; `threads` is recorded as given.
+    /// The frame's summary: the scene file and the assets it read (`sources`), the job's
+    /// settings, the pixel bounds, the statistics (the paper's Table 1 quantities) and the
+    /// planned footprint areas; `threads` is recorded as given.
     #[must_use]
     pub fn summary(&self, output: &FrameOutput, threads: usize) -> serde_json::Value {
         let s = &output.statistics;
         let b = output.bounds;
         let settings = &self.settings;
+        let sources: Vec<String> = std::iter::once(&self.scene_path)
+            .chain(&self.scene.assets)
+            .map(|p| p.display().to_string())
+            .collect();
         serde_json::json!({
             "scene": self.scene_path.display().to_string(),
+            "sources": sources,
             "frame": output.frame,
             "resolution": [settings.width, settings.height],
             "pixel_bounds": [b.x0, b.x1, b.y0, b.y1],
@@ -375,6 +398,15 @@ power = 20
                 );
             }
         }
+        // The whole-image job given the bounds afterwards renders the same crop.
+        let bad = full.set_pixel_bounds(Some(PixelBounds { y1: 13, ..bounds }));
+        assert!(bad.unwrap_err().to_string().contains("pixel_bounds"));
+        assert_eq!(full.settings.pixel_bounds, None);
+        full.set_pixel_bounds(Some(bounds)).unwrap();
+        let again = full.render_frame(0, &|_, _| {}, &never).unwrap();
+        assert_eq!(again.image.pixels, part.image.pixels);
+        full.set_pixel_bounds(None).unwrap();
+        assert_eq!(full.settings.bounds(), PixelBounds::full(20, 12));
         let summary = crop.summary(&part, 1);
         assert_eq!(summary["pixel_bounds"], serde_json::json!([3, 17, 2, 9]));
         assert_eq!(summary["resolution"], serde_json::json!([20, 12]));

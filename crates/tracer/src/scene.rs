@@ -1,6 +1,8 @@
 //! The built scene: primitives in a BVH, materials, lights and the camera. Immutable once
 //! built, shared by every rendering thread.
 
+use std::path::PathBuf;
+
 use glam::DVec3;
 
 use crate::accel::{Accelerator, PrimitiveHit};
@@ -25,6 +27,9 @@ pub struct Scene {
     pub camera: Camera,
     /// The scene file's render settings (command-line options override them).
     pub settings: RenderSettings,
+    /// The asset files (meshes, textures, environment maps) the scene was built from, in the
+    /// order they were read: with the scene file, everything the image depends on.
+    pub assets: Vec<PathBuf>,
 }
 
 impl Scene {

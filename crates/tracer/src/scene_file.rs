@@ -447,6 +447,8 @@ fn name_list<'a>(names: impl ExactSizeIterator<Item = &'a str>) -> String {
 #[derive(Debug, Default)]
 struct Budget {
     asset_bytes: Cell<u64>,
+    /// Every asset file read, in order.
+    assets: std::cell::RefCell<Vec<PathBuf>>,
     pixels: Cell<usize>,
     material_parts: Cell<usize>,
 }
@@ -662,6 +664,7 @@ impl Builder<'_> {
             );
         }
         self.budget.asset_bytes.set(total);
+        self.budget.assets.borrow_mut().push(path.to_path_buf());
         Ok(())
     }
 
@@ -1534,6 +1537,7 @@ impl Builder<'_> {
             lights,
             camera,
             settings,
+            assets: self.budget.assets.take(),
         };
         // Eq. 11's prior run plans the glint trees' footprint area from this scene's view.
         crate::plan::apply(&mut scene).map_err(|e| self.brdf_error("materials", &e))?;
