@@ -310,6 +310,7 @@ mod tests {
     use super::*;
     use crate::scene_file::parse_scene;
     use crate::settings::LightStrategy;
+    use crate::test_scenes::GLITTER_FLOOR;
     use std::path::Path;
 
     fn scene(text: &str) -> Scene {
@@ -740,32 +741,6 @@ irradiance = 1
             other => panic!("{other:?}"),
         }
     }
-
-    /// A glittery floor under a sphere light, path traced with the Gaussian filter.
-    const GLITTER_FLOOR: &str = r#"
-[render]
-resolution = [40, 24]
-spp = 2
-[camera]
-position = [0, 1, 3]
-look_at = [0, 0, 0]
-[materials.glitter]
-type = "glint"
-alpha = 0.1
-particles = 1e7
-gamma = 1
-[[shapes]]
-type = "rectangle"
-center = [0, 0, 0]
-u = [4, 0, 0]
-v = [0, 0, -4]
-material = "glitter"
-[[lights]]
-type = "sphere"
-center = [0, 1, -2]
-radius = 0.1
-power = 20
-"#;
 
     /// The image is bit-identical for one thread and for several, glints included.
     #[test]

@@ -310,39 +310,12 @@ pub fn display_image(image: &RgbImage, settings: &RenderSettings) -> RgbImage {
 mod tests {
     use super::*;
 
-    /// A small glittery floor as a scene file in a temporary folder.
+    /// A glittery floor as a scene file in a temporary folder.
     fn scene_file(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("glint-job-{}-{name}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("floor.toml");
-        std::fs::write(
-            &path,
-            r#"
-[render]
-resolution = [24, 16]
-spp = 2
-[camera]
-position = [0, 1, 3]
-look_at = [0, 0, 0]
-[materials.glitter]
-type = "glint"
-alpha = 0.1
-particles = 1e7
-gamma = 1
-[[shapes]]
-type = "rectangle"
-center = [0, 0, 0]
-u = [4, 0, 0]
-v = [0, 0, -4]
-material = "glitter"
-[[lights]]
-type = "sphere"
-center = [0, 1, -2]
-radius = 0.1
-power = 20
-"#,
-        )
-        .unwrap();
+        std::fs::write(&path, crate::test_scenes::GLITTER_FLOOR).unwrap();
         path
     }
 

@@ -22,7 +22,7 @@
 //! - [`job`]: a scene file, the command line's options and frames, as `cargo xtask render` and
 //!   Python's `glint.render` run them (one path, so both give the same bits).
 //! - [`film`]: pixel filters, tiles rendered in parallel with per-pixel seeded samplers (the
-//!   image is bit-identical for any thread count), EXR and PNG output.
+//!   image is bit-identical for any thread count and any pixel bounds), EXR and PNG output.
 //! - [`limits`]: what the tracer accepts (magnitudes, sizes, counts), checked where values
 //!   enter, so that hostile input gets an error rather than a panic, an abort or an image of
 //!   infinities.
@@ -96,6 +96,8 @@ pub mod scene;
 pub mod scene_file;
 pub mod settings;
 pub mod shape;
+#[cfg(test)]
+mod test_scenes;
 
 pub use error::TracerError;
 pub use film::{RenderOutput, RenderStatistics, render};
