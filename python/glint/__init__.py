@@ -1,6 +1,9 @@
 """glint: glittery surfaces with the discrete stochastic microfacet model (Jakob et al. 2014).
 
-The interface mirrors ``cargo xtask eval`` (``docs/eval.md`` in the repository): the same
+Scene files render with ``glint.render`` (as ``cargo xtask render`` does, bit for bit), and
+``python -m glint.farm`` renders frames on a Dask cluster (``glint.farm``).
+
+The material interface mirrors ``cargo xtask eval`` (``docs/eval.md`` in the repository): the same
 material fields with the same defaults and meaning, the same answers bit for bit, the same
 error messages, over NumPy arrays of n rows. Rows are answered in parallel with the GIL
 released.
@@ -19,8 +22,9 @@ import numpy as np
 
 from ._glint import Material as _NativeMaterial
 from ._glint import __version__
+from ._render import render, write_exr, write_png
 
-__all__ = ["Material", "__version__"]
+__all__ = ["Material", "__version__", "render", "write_exr", "write_png"]
 
 
 def _rows(name, value, width):

@@ -2,7 +2,8 @@
 //!
 //! **Invariant: this module adds transport only.** Every material and every row goes through
 //! glint-eval, the contract of `docs/eval.md` that `cargo xtask eval` also uses, so the same
-//! inputs give the same numbers bit for bit and the same error messages. The pure-Python
+//! inputs give the same numbers bit for bit and the same error messages; every render goes
+//! through glint-tracer's render job, as `cargo xtask render` does ([`render`]). The pure-Python
 //! package `glint` (`glint/__init__.py`) holds the documented signatures and shapes; this
 //! module takes C-contiguous float64 arrays of n rows and returns flat columns.
 //!
@@ -25,6 +26,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
+
+mod render;
 
 /// Rows per parallel task: large enough that scheduling is cheap next to ~1–20 µs queries.
 const ROWS_PER_TASK: usize = 256;
@@ -138,6 +141,18 @@ fn answer_rows<I: Sync, O: Send>(
     if inputs.len() <= ROWS_ANSWERED_UNWATCHED {
         return Ok(py.detach(work));
     }
+    run_watched(py, &cancelled, work)
+}
+
+/// Runs `work` with the GIL released on a scoped thread while the calling thread waits for it
+/// and, every [`SIGNAL_CHECK_INTERVAL`], takes the GIL to run Python's signal handlers. When
+/// one raises (Ctrl-C: `KeyboardInterrupt`), `cancelled` is set, `work` is awaited (it reads
+/// the flag and stops soon) and the exception is returned. Work that ends returns at once.
+fn run_watched<T: Send>(
+    py: Python<'_>,
+    cancelled: &AtomicBool,
+    work: impl FnOnce() -> T + Send,
+) -> PyResult<T> {
     let mut interrupt = None;
     let answers = py.detach(|| {
         std::thread::scope(|scope| {
@@ -348,6 +363,7 @@ impl Material {
 #[pymodule]
 fn _glint(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_class::<Material>()?;
+    render::register(module)?;
     module.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
