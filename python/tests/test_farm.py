@@ -59,8 +59,9 @@ def test_farm_frames_are_the_command_lines(tmp_path, cluster):
     # Everything done: a second run renders nothing; --overwrite renders again, identically.
     assert render_frames(scene, (0, 2), tmp_path / "farm", tile=24, client=cluster,
                          progress=False) == []
-    again = render_frames(scene, (1, 1), tmp_path / "farm", tile=16, client=cluster,
-                          overwrite=True, progress=False)
+    # Through the scheduler's address, as `--scheduler` connects.
+    again = render_frames(scene, (1, 1), tmp_path / "farm", tile=16,
+                          scheduler=cluster.scheduler.address, overwrite=True, progress=False)
     assert len(again) == 3
     _assert_frames_equal(tmp_path / "farm", tmp_path / "cli", "floor", [1])
     # A changed scene file is not the recorded one: its frames render again.
