@@ -38,7 +38,7 @@ fn brdf(c: &mut Criterion) {
         })
     });
     // What a multiscale evaluation adds to its tree query: the conic (every query).
-    let cone = glint_sphere::ConeRadius::new(first.parameters().gamma).expect("valid cone");
+    let cone = glint_sphere::ConeRadius::new(first.parameters().gamma_radians).expect("valid cone");
     let mut i = 0;
     group.bench_function("eval_overhead_conic", |b| {
         b.iter(|| {

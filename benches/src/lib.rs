@@ -197,7 +197,7 @@ pub fn table1_brdf_workload(
     .expect("valid roughness");
     let mut parameters = glint_brdf::GlintParameters::new(distribution);
     parameters.particles = setting.particles;
-    parameters.gamma = setting.gamma_degrees.to_radians();
+    parameters.gamma_radians = setting.gamma_degrees.to_radians();
     parameters.seed = seed;
     parameters.expected_footprint_area = PIXEL_FOOTPRINT_SIDE * PIXEL_FOOTPRINT_SIDE;
     let brdf = glint_brdf::DiscreteBrdf::new(parameters).expect("valid setting");

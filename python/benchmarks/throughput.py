@@ -20,7 +20,7 @@ import numpy as np
 
 import glint
 
-MATERIAL = dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_deg=1.0, seed=7)
+MATERIAL = dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_degrees=1.0, seed=7)
 
 
 def queries(n, seed=1):

@@ -9,7 +9,7 @@ error messages, over NumPy arrays of n rows. Rows are answered in parallel with 
 released.
 
 >>> import numpy as np, glint
->>> m = glint.Material(distribution="beckmann", alpha=0.1, particles=1e6, gamma_deg=1.0)
+>>> m = glint.Material(distribution="beckmann", alpha=0.1, particles=1e6, gamma_degrees=1.0)
 >>> r = m.eval([0, 0, 1], [0.1, 0, 0.99], [0.3, 0.4], [1e-3, 0], [0, 1e-3])
 >>> bool(r["count"] >= 0 and r["error"] == "")
 True
@@ -17,6 +17,7 @@ True
 
 import json
 import math
+import warnings
 
 import numpy as np
 
@@ -111,7 +112,8 @@ class Material:
     Parameters have the names, defaults, meaning and ranges of ``docs/eval.md``'s material
     fields: ``distribution`` ("beckmann" or "ggx"), roughness ``alpha`` and ``alpha_y`` in
     [1e-4, 1] (None: the same as ``alpha``), ``particles`` N per unit texture square (a whole
-    number in [1, 2^53]), ``gamma_deg`` the cone radius γ in degrees ([5.73e-5, 60]),
+    number in [1, 2^53]), ``gamma_degrees`` the cone radius γ in degrees ([5.73e-5, 60], 1 by
+    default; ``gamma_deg``, its older name, still works, deprecated),
     ``epsilon`` of Eq. 10 in [0, 1] (0 = exact counts), ``seed`` the particle set (a whole
     number in [0, 2^64), taken exactly), ``fresnel`` (None, ``{"conductor": {"eta": [r, g, b],
     "k": [r, g, b]}}`` or ``{"dielectric": {"eta": x}}``, η in [1e-3, 1e3] and k in [0, 1e3];
@@ -126,14 +128,22 @@ class Material:
     """
 
     def __init__(self, distribution="beckmann", alpha=0.1, alpha_y=None, particles=1e6,
-                 gamma_deg=1.0, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
+                 gamma_deg=None, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
                  negligible_count=0.0, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
-                 pdf_points=64):
+                 pdf_points=64, gamma_degrees=None):
+        if gamma_deg is not None:
+            if gamma_degrees is not None:
+                raise ValueError("give gamma_degrees or gamma_deg (its older name), not both")
+            warnings.warn("glint.Material(gamma_deg=...) is deprecated: use gamma_degrees=...",
+                          DeprecationWarning, stacklevel=2)
+            gamma_degrees = gamma_deg
+        if gamma_degrees is None:
+            gamma_degrees = 1.0
         spec = {
             "distribution": _name("distribution", distribution),
             "alpha": _finite("alpha", alpha),
             "particles": _finite("particles", particles),
-            "gamma_deg": _finite("gamma_deg", gamma_deg),
+            "gamma_degrees": _finite("gamma_degrees", gamma_degrees),
             "epsilon": _finite("epsilon", epsilon),
             "seed": _finite("seed", seed),
             "multinomial": _name("multinomial", multinomial),
@@ -201,23 +211,56 @@ class Material:
         }
         return self._finish(result, single)
 
-    def sample(self, wi, u):
-        """Directions from the glint sampler (Sec. 3.4) for n rows.
+    def sample(self, wi, u, uv=None, duv_dx=None, duv_dy=None):
+        """Directions from the glint sampler (Sec. 3.4) for n rows, and their two weights.
 
-        ``u``: (n, 4) uniform numbers in [0, 1) (two for the widened lobe, two for the cone) or
-        (n, 3) in ``docs/eval.md``'s original form. Returns ``wo`` (n, 3), rows of NaN where no
-        direction is sampled; ``pdf`` (n,) and ``weight`` (n,) or (n, 3), f_smooth·cos θ_o/pdf,
-        both 0 where no direction is sampled; and ``error``.
+        ``wi``: (n, 3) directions toward the viewer (normalized on input); ``u``: (n, 4)
+        uniform numbers in [0, 1) (two for the widened lobe, two for the cone) or (n, 3) in
+        ``docs/eval.md``'s original form. Returns ``wo`` (n, 3), toward the light, rows of NaN
+        where no direction is sampled; ``pdf`` (n,); ``smooth_weight`` (n,) or (n, 3),
+        f_smooth·cos θ_o/pdf, for paths that carry no footprint; and ``error``.
+
+        With the footprint ``uv``, ``duv_dx``, ``duv_dy`` ((n, 2) each, as in ``eval``) it
+        also returns ``f_hat`` at the sampled direction and ``footprint_weight``,
+        f̂·cos θ_o/pdf, the weight Rust's ``GlintBxdf::sample`` and C's ``glint_sample`` with a
+        footprint give (bit for bit). Rows without a sample have 0 weights.
+
+        ``weight`` is ``smooth_weight`` under its older name (deprecated: it will be removed
+        in the next version).
         """
         wi, single = _rows("wi", wi, 3)
         u, _ = _rows("u", u, None)
         c = self._native.sample(wi, u)
+        wo = np.stack([c["wo_x"], c["wo_y"], c["wo_z"]], axis=1)
+        smooth_weight = self._colour(c, "weight")
         result = {
-            "wo": np.stack([c["wo_x"], c["wo_y"], c["wo_z"]], axis=1),
+            "wo": wo,
             "pdf": c["pdf"],
-            "weight": self._colour(c, "weight"),
+            "smooth_weight": smooth_weight,
+            "weight": smooth_weight,
             "error": c["error"],
         }
+        footprint = (uv, duv_dx, duv_dy)
+        if any(x is not None for x in footprint):
+            if any(x is None for x in footprint):
+                raise ValueError("a footprint needs all of uv, duv_dx and duv_dy")
+            sampled = c["pdf"] > 0
+            # Rows without a sample are evaluated at a harmless direction and zeroed after.
+            at = np.where(sampled[:, None], wo, np.array([0.0, 0.0, 1.0]))
+            uv, _ = _rows("uv", uv, 2)
+            dx, _ = _rows("duv_dx", duv_dx, 2)
+            dy, _ = _rows("duv_dy", duv_dy, 2)
+            e = self._native.eval(wi, at, uv, dx, dy)
+            f_hat = self._colour(e, "f_hat")
+            mask = sampled if f_hat.ndim == 1 else sampled[:, None]
+            f_hat = np.where(mask, f_hat, 0.0)
+            cos_over_pdf = np.where(sampled, wo[:, 2] / np.where(sampled, c["pdf"], 1.0), 0.0)
+            result["f_hat"] = f_hat
+            result["footprint_weight"] = f_hat * (cos_over_pdf if f_hat.ndim == 1
+                                                   else cos_over_pdf[:, None])
+            bad = np.array(e["error"], dtype=str)
+            result["error"] = np.where(np.array(c["error"], dtype=str) != "",
+                                       np.array(c["error"], dtype=str), bad)
         return self._finish(result, single)
 
     def pdf(self, wi, wo):

@@ -64,7 +64,8 @@ class GlintBSDF(mi.BSDF):
     """The discrete multiscale BRDF (f̂, Eq. 5) of ``glint.Material``.
 
     Parameters: ``distribution`` ("beckmann"), ``alpha`` (0.1), ``alpha_y`` (= alpha),
-    ``particles`` (1e6), ``gamma_deg`` (1), ``epsilon`` (0.1), ``seed`` (0), ``multinomial``
+    ``particles`` (1e6), ``gamma_degrees`` (1; ``gamma_deg``, its older name, still works,
+    deprecated), ``epsilon`` (0.1), ``seed`` (0), ``multinomial``
     ("exact"), ``negligible_count`` (0): as ``glint.Material``, which checks them (an invalid
     one raises ``ValueError`` naming it); ``uv_scale`` (1): texture repetitions per unit of
     the shape's (u, v), positive and finite, as in the scene files. F = 1 (no Fresnel).
@@ -90,7 +91,8 @@ class GlintBSDF(mi.BSDF):
         self.params = dict(
             distribution=get("distribution", "beckmann"), alpha=get("alpha", 0.1),
             alpha_y=get("alpha_y", None), particles=get("particles", 1e6),
-            gamma_deg=get("gamma_deg", 1.0), epsilon=get("epsilon", 0.1), seed=get("seed", 0),
+            gamma_degrees=get("gamma_degrees", None), gamma_deg=get("gamma_deg", None),
+            epsilon=get("epsilon", 0.1), seed=get("seed", 0),
             multinomial=get("multinomial", "exact"),
             negligible_count=get("negligible_count", 0.0))
         self.material = glint.Material(**self.params)
@@ -255,7 +257,7 @@ EXPOSURE = -2.5
 
 
 def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=1e9,
-                        gamma_deg=0.5, alpha=0.1, epsilon=0.1, seed=1, uv_scale=0.5,
+                        gamma_degrees=0.5, alpha=0.1, epsilon=0.1, seed=1, uv_scale=0.5,
                         negligible_count=1e-12, footprint_scale=1.0, hide_emitters=False,
                         rfilter="gaussian", sampler_seed=0):
     """A Mitsuba scene dict of ``scenes/sphere_lights.toml`` (frame 0), small by default.
@@ -270,7 +272,7 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
     width, height = resolution
     if floor == "glint":
         bsdf = {"type": "glint", "distribution": "beckmann", "alpha": alpha,
-                "particles": float(particles), "gamma_deg": gamma_deg, "epsilon": epsilon,
+                "particles": float(particles), "gamma_degrees": gamma_degrees, "epsilon": epsilon,
                 "seed": int(seed), "uv_scale": uv_scale,
                 "negligible_count": negligible_count}
     elif floor == "roughconductor":

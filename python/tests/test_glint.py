@@ -17,12 +17,12 @@ import glint
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
 MATERIALS = [
-    dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_deg=1.0, seed=7),
-    dict(distribution="ggx", alpha=0.05, alpha_y=0.3, particles=2e7, gamma_deg=3.0,
+    dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_degrees=1.0, seed=7),
+    dict(distribution="ggx", alpha=0.05, alpha_y=0.3, particles=2e7, gamma_degrees=3.0,
          epsilon=0.0, seed=3, multinomial="normal"),
-    dict(distribution="beckmann", alpha=0.2, particles=1e6, gamma_deg=2.0,
+    dict(distribution="beckmann", alpha=0.2, particles=1e6, gamma_degrees=2.0,
          fresnel={"conductor": {"eta": [0.2, 0.9, 1.1], "k": [3.9, 2.4, 2.2]}}),
-    dict(distribution="beckmann", alpha=0.1, particles=1e12, gamma_deg=0.5,
+    dict(distribution="beckmann", alpha=0.1, particles=1e12, gamma_degrees=0.5,
          negligible_count=1e-12, fresnel={"dielectric": {"eta": 1.5}}),
 ]
 
@@ -109,6 +109,61 @@ def test_eval_sample_pdf_match_json_lines_bit_for_bit(index):
     assert found > 0, "the comparison must include queries that find particles"
 
 
+def test_sample_weights_are_named_and_the_footprint_one_is_f_hats():
+    """`smooth_weight` (and its deprecated name `weight`) is eval's sample weight; with a
+    footprint, `footprint_weight` is f̂ at the sampled direction times cos θ_o / pdf, f̂ as
+    eval's `eval` gives it there, bit for bit (what Rust's GlintBxdf::sample computes)."""
+    m = glint.Material(**MATERIALS[0])
+    wi, _, uv, dx, dy, u = _queries(200, seed=11)
+    plain = m.sample(wi, u)
+    s = m.sample(wi, u, uv, dx, dy)
+    assert "footprint_weight" not in plain
+    for key in ("wo", "pdf", "smooth_weight"):
+        assert _same(s[key], plain[key])
+    assert _same(s["weight"], s["smooth_weight"])
+    sampled = s["pdf"] > 0
+    assert sampled.sum() > 100 and (~sampled).sum() >= 0
+    at = np.where(sampled[:, None], s["wo"], [0.0, 0.0, 1.0])
+    f_hat = m.eval(wi, at, uv, dx, dy)["f_hat"]
+    for i in range(len(wi)):
+        if sampled[i]:
+            assert _same(s["f_hat"][i], f_hat[i])
+            assert _same(s["footprint_weight"][i], f_hat[i] * (s["wo"][i, 2] / s["pdf"][i]))
+        else:
+            assert s["footprint_weight"][i] == 0 and s["f_hat"][i] == 0
+    assert (s["footprint_weight"] > 0).sum() > 0, "some sampled directions meet flakes"
+    one = m.sample(wi[0], u[0], uv[0], dx[0], dy[0])
+    assert _same(one["footprint_weight"], s["footprint_weight"][0])
+    with pytest.raises(ValueError, match="uv, duv_dx and duv_dy"):
+        m.sample(wi, u, uv)
+
+
+def test_gamma_deg_is_the_deprecated_name_of_gamma_degrees():
+    wi, wo, uv, dx, dy, _ = _queries(50, seed=3)
+    new = glint.Material(particles=1e8, gamma_degrees=2.5).eval(wi, wo, uv, dx, dy)
+    with pytest.warns(DeprecationWarning, match="gamma_degrees"):
+        old = glint.Material(particles=1e8, gamma_deg=2.5)
+    assert _same(old.eval(wi, wo, uv, dx, dy)["f_hat"], new["f_hat"])
+    with pytest.warns(DeprecationWarning):
+        positional = glint.Material("beckmann", 0.1, None, 1e8, 2.5)
+    assert _same(positional.eval(wi, wo, uv, dx, dy)["f_hat"], new["f_hat"])
+    with pytest.raises(ValueError, match="not both"):
+        glint.Material(gamma_deg=2.5, gamma_degrees=2.5)
+
+
+def test_the_readmes_python_snippet_runs():
+    """The README's Python snippet (under "From Python"), as it stands there, runs and finds
+    what it says: a convention change cannot leave it stale."""
+    readme = (REPO / "README.md").read_text()
+    section = readme[readme.index("## From Python"):]
+    start = section.index("```python\n") + len("```python\n")
+    code = section[start:section.index("```", start)]
+    names = {}
+    exec(compile(code, "README.md", "exec"), names)  # noqa: S102 (the project's own README)
+    assert names["r"]["error"][0] == "" and names["r"]["f_hat"][0] >= 0
+    assert names["s"]["pdf"][0] > 0 and names["s"]["smooth_weight"][0] > 0
+
+
 def test_single_query_gives_scalars():
     m = glint.Material(particles=1e9, seed=7)
     r = m.eval([0, 0, 1], [0.1, 0, 0.99], [0.3, 0.4], [1e-3, 0], [0, 1e-3])
@@ -136,7 +191,7 @@ def test_coloured_fresnel_gives_rgb_columns():
     (dict(alpha_y=-1.0), "alpha"),
     (dict(particles=1.5), "material.particles"),
     (dict(particles=0), "material.particles"),
-    (dict(gamma_deg=90), "gamma"),
+    (dict(gamma_degrees=90), "gamma"),
     (dict(distribution="beckman"), "material.distribution"),
     (dict(multinomial="approximate"), "material.multinomial"),
     (dict(pdf_quadrature="gauss"), "material.pdf_quadrature"),
@@ -148,7 +203,7 @@ def test_coloured_fresnel_gives_rgb_columns():
     (dict(fresnel={"dielectric": {"eta": math.inf}}), "material.fresnel"),
     (dict(pdf_points=0), "material.pdf_points"),
     (dict(pdf_points=2.5), "material.pdf_points"),
-    (dict(gamma_deg=1e-300), "material.gamma_deg"),
+    (dict(gamma_degrees=1e-300), "material.gamma_degrees"),
     (dict(epsilon=1e300), "epsilon"),
     (dict(expected_footprint_area=0.0), "expected footprint area"),
 ])
@@ -263,7 +318,7 @@ def test_a_forked_child_answers_large_batches():
 
 _INTERRUPTED_BATCH = """
 import sys, numpy as np, glint
-m = glint.Material(distribution="beckmann", alpha=0.1, particles=1e12, gamma_deg=1.0,
+m = glint.Material(distribution="beckmann", alpha=0.1, particles=1e12, gamma_degrees=1.0,
                    epsilon=0.0, seed=1)
 n = 1_000_000
 rng = np.random.default_rng(5)

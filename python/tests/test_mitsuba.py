@@ -88,7 +88,7 @@ def test_film_loop_scales_differentials_by_one_over_sqrt_spp():
 
 def test_pixel_value_is_f_hat_of_the_package():
     """(a) A pixel lit by a directional light: footprint, f̂ and the integrator's value."""
-    params = dict(particles=1e10, gamma_deg=0.5, alpha=0.1, seed=1, epsilon=0.1,
+    params = dict(particles=1e10, gamma_degrees=0.5, alpha=0.1, seed=1, epsilon=0.1,
                   negligible_count=1e-12)
     reference = glint.Material(distribution="beckmann", **params)
     pixels = [(px, 16) for px in range(20, 29)]

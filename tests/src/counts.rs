@@ -424,7 +424,7 @@ pub fn skipped_query_particles(
     let d = Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).expect("valid roughness");
     let mut parameters = GlintParameters::new(d);
     parameters.particles = particles as u64;
-    parameters.gamma = 6f64.to_radians();
+    parameters.gamma_radians = 6f64.to_radians();
     parameters.epsilon = 0.0;
     let exact = DiscreteBrdf::new(parameters).expect("valid material");
     parameters.negligible_count = 0.5;

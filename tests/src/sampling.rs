@@ -146,7 +146,7 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
         for &theta_i in &angles {
             let mut parameters =
                 GlintParameters::new(Microfacet::new(kind, 0.15, 0.15).expect("valid roughness"));
-            parameters.gamma = 3f64.to_radians();
+            parameters.gamma_radians = 3f64.to_radians();
             // The default pdf (the 7-point cubature here) for Beckmann, the paper's QMC rule with
             // many points for GGX.
             if kind == DistributionKind::Ggx {
@@ -191,7 +191,7 @@ fn wide_cone_cases(angles: &[f64]) -> Vec<SamplerCase> {
         for &theta_i in angles {
             let distribution = Microfacet::new(kind, ax, ay).expect("valid roughness");
             let mut parameters = GlintParameters::new(distribution);
-            parameters.gamma = f64::to_radians(gamma_degrees);
+            parameters.gamma_radians = f64::to_radians(gamma_degrees);
             cases.push(SamplerCase {
                 name: format!(
                     "glint {kind:?} α ({ax}, {ay}) γ {gamma_degrees}° θ {:.0}°",

@@ -80,7 +80,7 @@ fn cases() -> Vec<Case> {
             material: || GlintParameters {
                 particles: 10_000,
                 epsilon: 0.0,
-                gamma: 8f64.to_radians(),
+                gamma_radians: 8f64.to_radians(),
                 ..GlintParameters::new(Microfacet::new(DistributionKind::Ggx, 0.3, 0.3).unwrap())
             },
             uv: [0.25, 0.25],
@@ -161,7 +161,7 @@ fn cases() -> Vec<Case> {
         Case {
             name: "a hyperbolic conic (ω_i and ω_o near opposite grazing), wide γ",
             material: || GlintParameters {
-                gamma: 30f64.to_radians(),
+                gamma_radians: 30f64.to_radians(),
                 ..beckmann(0.5)
             },
             uv: [0.2, 0.3],

@@ -121,7 +121,7 @@ mod tests {
     use glint_brdf::{Bxdf, DVec3, DistributionKind, Fresnel, Microfacet};
     use serde_json::Value;
 
-    const MATERIAL: &str = r#"{"distribution": "beckmann", "alpha": 0.1, "alpha_y": 0.1, "particles": 1e6, "gamma_deg": 1.0, "epsilon": 0.1, "seed": 7, "fresnel": "none"}"#;
+    const MATERIAL: &str = r#"{"distribution": "beckmann", "alpha": 0.1, "alpha_y": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "epsilon": 0.1, "seed": 7, "fresnel": "none"}"#;
 
     fn run_lines(lines: &[String]) -> (Vec<Value>, usize) {
         let input = lines.join("\n");
@@ -235,8 +235,8 @@ mod tests {
                 "expected footprint area 0.0",
             ),
             (
-                eval.replace("\"gamma_deg\": 1.0", "\"gamma_deg\": 1e-300"),
-                "material.gamma_deg = 1e-300",
+                eval.replace("\"gamma_degrees\": 1.0", "\"gamma_degrees\": 1e-300"),
+                "material.gamma_degrees = 1e-300",
             ),
             (eval.replace("\"op\"", "\"opp\""), "unknown field `opp`"),
             (

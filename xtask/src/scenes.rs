@@ -36,7 +36,7 @@ fn glint_parameters(scene: &Scene) -> Vec<(u64, f64, f64, f64)> {
             Material::Glint(g) => {
                 let p = g.brdf.parameters();
                 let (ax, ay) = p.distribution.alpha();
-                out.push((p.particles, p.gamma.to_degrees(), ax, ay));
+                out.push((p.particles, p.gamma_radians.to_degrees(), ax, ay));
             }
             Material::Mix(parts) => parts.iter().for_each(|(_, m)| collect(m, out)),
             _ => {}

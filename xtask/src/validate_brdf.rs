@@ -118,7 +118,7 @@ pub(crate) fn convergence(
     for exponent in [3, 5, 7, 9, 11, 13, 15] {
         let mut parameters = GlintParameters::new(distribution);
         parameters.particles = 10u64.pow(exponent);
-        parameters.gamma = 2f64.to_radians();
+        parameters.gamma_radians = 2f64.to_radians();
         let brdf = DiscreteBrdf::new(parameters)?;
         let mut rng = SplitMix64::new(u64::from(exponent));
         let (mut sum, mut sum2, mut expected, mut nodes, mut smooth) = (0.0, 0.0, 0.0, 0.0, 0.0);

@@ -35,7 +35,7 @@ fn material(
     let mut parameters = GlintParameters::new(
         Microfacet::new(DistributionKind::Beckmann, alpha, alpha).expect("valid roughness"),
     );
-    parameters.gamma = gamma_degrees.to_radians();
+    parameters.gamma_radians = gamma_degrees.to_radians();
     parameters.particles = 1000;
     parameters.pdf_quadrature = quadrature;
     parameters.pdf_points = points;

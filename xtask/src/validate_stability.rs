@@ -204,7 +204,7 @@ fn check_material(
     let built = catch_unwind(|| -> Result<DiscreteBrdf, String> {
         let distribution = Microfacet::new(kind, alpha.0, alpha.1).map_err(|e| e.to_string())?;
         let mut parameters = GlintParameters::new(distribution);
-        parameters.gamma = gamma_degrees.to_radians();
+        parameters.gamma_radians = gamma_degrees.to_radians();
         parameters.particles = particles;
         parameters.fresnel = fresnel;
         DiscreteBrdf::new(parameters).map_err(|e| e.to_string())

@@ -75,7 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut parameters =
         GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, 0.15, 0.15)?);
     parameters.particles = 200_000;
-    parameters.gamma = 1.5f64.to_radians();
+    parameters.gamma_radians = 1.5f64.to_radians();
     parameters.expected_footprint_area = footprint_side * footprint_side;
     let material = DiscreteBrdf::new(parameters)?;
     let base_albedo = 0.03; // a faint diffuse base under the flakes, so the plane shows

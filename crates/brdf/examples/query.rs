@@ -19,7 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let distribution = Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1)?;
     let mut parameters = GlintParameters::new(distribution);
     parameters.particles = 1_000_000;
-    parameters.gamma = 1f64.to_radians();
+    parameters.gamma_radians = 1f64.to_radians();
     parameters.expected_footprint_area = 4e-4;
     let material = DiscreteBrdf::new(parameters)?;
     // One scratch per thread, reused by every query that thread makes.

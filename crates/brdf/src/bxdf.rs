@@ -1,11 +1,4 @@
-//! The BxDF interface, in the style of pbrt-v4: [`Bxdf::eval`], [`Bxdf::sample`] (from uniform
-//! numbers, not a generator) and [`Bxdf::pdf`].
-//!
-//! Directions are unit vectors in the local shading frame (n = +z), both pointing away from
-//! the surface: ω_i toward the viewer, ω_o toward the light (every BRDF here is reciprocal, so
-//! the order only matters for sampling, which draws ω_o given ω_i). Invalid directions
-//! (non-finite, or at or below the horizon) give a zero value, a zero pdf and no sample: never
-//! NaN.
+//! The BxDF interface ([`Bxdf`]) and its samples.
 
 use glam::DVec3;
 
@@ -37,7 +30,21 @@ impl BxdfSample {
     }
 }
 
-/// A BRDF in the style of pbrt-v4.
+/// A BRDF: [`Bxdf::eval`], [`Bxdf::sample`] (from uniform numbers, not a generator) and
+/// [`Bxdf::pdf`], shaped like pbrt-v4's `BxDF` but with **the paper's and Mitsuba's names for
+/// the directions, the reverse of pbrt-v4's**:
+///
+/// - **ω_i (`wi`) points toward the viewer** (the camera, or the previous path vertex): the
+///   direction the path arrived from, reversed. pbrt-v4 calls it `wo`.
+/// - **ω_o (`wo`) points toward the light** (the next path vertex): the direction
+///   [`Bxdf::sample`] draws given ω_i. pbrt-v4 calls it `wi`.
+///
+/// Both are in the local shading frame (n = +z) and point away from the surface. Every BRDF
+/// here is reciprocal, so the order only matters for sampling. Directions need not be unit
+/// vectors: every entry point normalizes them ([`crate::frame::given_direction`]: a vector of
+/// unit length to rounding is used as it is), in Rust as in C, Python and `eval`. Invalid
+/// directions (zero, non-finite, or at or below the horizon) give a zero value, a zero pdf and
+/// no sample: never NaN.
 pub trait Bxdf {
     /// The uniform numbers in [0, 1) that one sample uses, `[f64; k]`: exactly as many as the
     /// sampler consumes, so that a renderer's sample dimensions map one to one.

@@ -55,7 +55,7 @@ use crate::fresnel::Fresnel;
 use crate::glint::GlintBxdf;
 use crate::glint_sampling::{GlintSampler, PdfQuadrature};
 use crate::negligible::NegligibleTest;
-use crate::smooth::{MicrofacetBrdf, above_horizon};
+use crate::smooth::{MicrofacetBrdf, above_horizon, given};
 
 /// The parameters of a glint material.
 ///
@@ -63,7 +63,7 @@ use crate::smooth::{MicrofacetBrdf, above_horizon};
 /// |---|---|---|
 /// | `distribution` | D and its roughness (α_x, α_y) | — |
 /// | `particles` | N, flakes per unit texture square | 10⁶ |
-/// | `gamma` | the cone radius γ (radians), in [10⁻⁶, 60°] | 1° |
+/// | `gamma_radians` | the cone radius γ in radians, in [10⁻⁶, 60°] (C, Python, `eval` and scene files take `gamma_degrees`) | 1° |
 /// | `epsilon` | ε of Eq. 10 (0 = exact) | 0.1 |
 /// | `seed` | the particle set | 0 |
 /// | `fresnel` | F | none (F = 1) |
@@ -80,8 +80,8 @@ pub struct GlintParameters {
     pub distribution: Microfacet,
     /// N, particles per unit texture square.
     pub particles: u64,
-    /// The cone radius γ in radians, in [10⁻⁶, 60°].
-    pub gamma: f64,
+    /// The cone radius γ in radians, in [10⁻⁶, 60°] (`1f64.to_radians()` for 1°).
+    pub gamma_radians: f64,
     /// ε of Eq. 10 (0 = exact).
     pub epsilon: f64,
     /// The material seed.
@@ -117,7 +117,7 @@ impl GlintParameters {
         Self {
             distribution,
             particles: 1_000_000,
-            gamma: 1f64.to_radians(),
+            gamma_radians: 1f64.to_radians(),
             epsilon: 0.1,
             seed: 0,
             fresnel: Fresnel::None,
@@ -165,7 +165,7 @@ impl DiscreteBrdf {
     /// # Errors
     /// A [`BrdfError`] naming the invalid parameter.
     pub fn new(parameters: GlintParameters) -> Result<Self, BrdfError> {
-        let gamma = parameters.gamma;
+        let gamma = parameters.gamma_radians;
         if !(gamma >= 1e-6 && gamma <= 60f64.to_radians()) {
             return Err(BrdfError::InvalidConeRadius { gamma });
         }
@@ -297,14 +297,14 @@ impl DiscreteBrdf {
     /// [`Bxdf::sample`](crate::Bxdf::sample) on [`DiscreteBrdf::at`] gives all three.
     #[must_use]
     pub fn sample_direction(&self, wi: DVec3, u: [f64; 4]) -> Option<DVec3> {
-        self.sampler.sample_direction(wi, u)
+        self.sampler.sample_direction(given(wi), u)
     }
 
     /// The density of [`DiscreteBrdf::sample_direction`] in solid angle (the same as
     /// [`Bxdf::pdf`](crate::Bxdf::pdf) on [`DiscreteBrdf::at`], for any footprint).
     #[must_use]
     pub fn sampling_pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
-        self.sampler.pdf(wi, wo)
+        self.sampler.pdf(given(wi), given(wo))
     }
 
     /// The tree query of Eq. 6 for (ω_i, ω_o) and f̂ from it (Eq. 5): the work every glint
@@ -372,6 +372,7 @@ impl DiscreteBrdf {
     /// The conic of normals reflecting ω_i into the cone around ω_o (Eq. 8), which normalizes
     /// and checks the directions; `None` unless both are above the horizon.
     pub(crate) fn conic(&self, wi: DVec3, wo: DVec3) -> Option<SphericalConic> {
+        let (wi, wo) = (given(wi), given(wo));
         if !(above_horizon(wi) && above_horizon(wo)) {
             return None;
         }
@@ -387,6 +388,7 @@ impl DiscreteBrdf {
         axis: DVec3,
         cone: &ConeRadius,
     ) -> Option<SphericalConic> {
+        let (wi, axis) = (given(wi), given(axis));
         if !(above_horizon(wi) && above_horizon(axis)) {
             return None;
         }

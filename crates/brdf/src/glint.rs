@@ -13,6 +13,7 @@ use glint_tree::{Footprint, QueryScratch};
 use crate::bxdf::{Bxdf, BxdfSample};
 use crate::cone::cone_solid_angle;
 use crate::discrete::{ConicQuery, DiscreteBrdf};
+use crate::smooth::given;
 
 /// One glint evaluation with what its tree query found (the statistics of the paper's
 /// Table 1).
@@ -239,6 +240,7 @@ impl Bxdf for GlintBxdf<'_> {
     /// ω_o from the glint sampler ([`DiscreteBrdf::sample_direction`]), weighed with f̂: the
     /// weight f̂·cos θ_o / pdf is the estimate of reflected radiance for unit radiance from ω_o.
     fn sample(&self, wi: DVec3, u: [f64; 4]) -> Option<BxdfSample> {
+        let wi = given(wi);
         let wo = self.brdf.sample_direction(wi, u)?;
         BxdfSample::weighted(wo, self.eval(wi, wo), self.pdf(wi, wo))
     }
@@ -262,7 +264,7 @@ mod tests {
             Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).expect("valid roughness");
         let mut parameters = GlintParameters::new(distribution);
         parameters.particles = 1_000_000_000;
-        parameters.gamma = gamma_degrees.to_radians();
+        parameters.gamma_radians = gamma_degrees.to_radians();
         parameters.negligible_count = negligible_count;
         DiscreteBrdf::new(parameters).expect("valid parameters")
     }
@@ -391,7 +393,7 @@ mod tests {
                 let fp = footprint(i);
                 let bxdf = brdf.at(&fp, &mut scratch);
                 for (wi, wo) in directions() {
-                    let gamma = brdf.parameters().gamma;
+                    let gamma = brdf.parameters().gamma_radians;
                     assert_eq!(bxdf.evaluate_in_cone(wi, wo, gamma), bxdf.evaluate(wi, wo));
                     assert_eq!(
                         bxdf.expected_count_in_cone(wi, wo, gamma).to_bits(),
@@ -510,7 +512,7 @@ mod tests {
         // realized differently (Eq. 11 plans splits for the material's γ), so the counts agree
         // in distribution (tested above), and the expected counts to the quadrature's precision.
         let (wide, narrow) = (material(1.0, 0.0), material(0.2, 0.0));
-        let half = narrow.parameters().gamma;
+        let half = narrow.parameters().gamma_radians;
         let (mut s1, mut s2) = (QueryScratch::new(), QueryScratch::new());
         for i in 0..10 {
             let fp = footprint(i);

@@ -12,7 +12,8 @@
 //!   methods are the glint model; [`GlintBxdf::evaluate`] adds the query's statistics, and
 //!   [`GlintBxdf::evaluate_in_cone`] evaluates it with another cone (a sphere light's own).
 //!   [`DiscreteBrdf::smooth`] is the smooth limit.
-//! - [`Bxdf`]: the pbrt-v4-style interface (`eval`, `sample` from uniform numbers, `pdf`).
+//! - [`Bxdf`]: `eval`, `sample` from uniform numbers, `pdf`; ω_i toward the viewer, ω_o toward
+//!   the light (the paper's and Mitsuba's names, the reverse of pbrt-v4's).
 //! - [`MicrofacetBrdf`]: the smooth model, Eq. 3.
 //! - [`Microfacet`]: Beckmann and GGX, isotropic and anisotropic: D, Smith Λ, G1, G, normal
 //!   sampling (and visible-normal sampling for GGX), and the particle density p(m) = D(m)(m·n)

@@ -6,7 +6,16 @@ use glam::DVec3;
 use crate::bxdf::{Bxdf, BxdfSample};
 use crate::distribution::{Microfacet, NormalSampling};
 use crate::error::BrdfError;
+use crate::frame::given_direction;
 use crate::fresnel::Fresnel;
+
+/// A direction as every entry point of this crate takes it: [`given_direction`] (unit vectors
+/// as they are, others normalized), or the zero vector, which no horizon test admits, for a
+/// zero or non-finite one. So an unnormalized ω gives the answer of its unit vector everywhere
+/// (the glint model's conic normalizes its directions the same way).
+pub(crate) fn given(w: DVec3) -> DVec3 {
+    given_direction(w).unwrap_or(DVec3::ZERO)
+}
 
 /// Whether a direction is usable: finite and strictly above the horizon.
 pub(crate) fn above_horizon(w: DVec3) -> bool {
@@ -58,6 +67,7 @@ impl MicrofacetBrdf {
     /// The direction of [`Bxdf::sample`] alone (no evaluation, no pdf).
     #[must_use]
     pub fn sample_direction(&self, wi: DVec3, u: [f64; 2]) -> Option<DVec3> {
+        let wi = given(wi);
         if !above_horizon(wi) {
             return None;
         }
@@ -83,6 +93,7 @@ impl Bxdf for MicrofacetBrdf {
     type Uniforms = [f64; 2];
 
     fn eval(&self, wi: DVec3, wo: DVec3) -> DVec3 {
+        let (wi, wo) = (given(wi), given(wo));
         if !(above_horizon(wi) && above_horizon(wo)) {
             return DVec3::ZERO;
         }
@@ -103,6 +114,7 @@ impl Bxdf for MicrofacetBrdf {
 
     /// The normal density times the reflection Jacobian dm/dω_o = 1/(4 ω_i·h).
     fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
+        let (wi, wo) = (given(wi), given(wo));
         if !(above_horizon(wi) && above_horizon(wo)) {
             return 0.0;
         }

@@ -289,13 +289,25 @@ typedef struct GlintSample {
    */
   double pdf;
   /**
-   * f·cos θ_o / pdf per RGB channel: the reflected radiance for unit radiance from `wo`.
+   * Deprecated (to be removed in the next version): `footprint_weight` when a footprint
+   * was given, else `smooth_weight`.
    */
   double weight[3];
   /**
    * 1 for a sample, 0 when none was drawn (then every other field is 0).
    */
   int valid;
+  /**
+   * f_smooth·cos θ_o / pdf per RGB channel: the smooth BRDF's weight, for a path that
+   * carries no footprint (after the first bounce).
+   */
+  double smooth_weight[3];
+  /**
+   * f̂·cos θ_o / pdf per RGB channel with the footprint given (a glint query): the
+   * reflected radiance for unit radiance from `wo`, as Rust's `GlintBxdf::sample` and
+   * Python's `footprint_weight` give it; 0 without a footprint.
+   */
+  double footprint_weight[3];
 } GlintSample;
 
 #ifdef __cplusplus
@@ -400,11 +412,12 @@ enum GlintStatus glint_eval_smooth(const struct GlintMaterial *material,
 /**
  * Samples an outgoing direction for `wi` from four uniform numbers `u[0..4]` in [0, 1): two
  * choose the cone's centre from the widened smooth model, two the direction in the cone of
- * radius γ (Sec. 3.4). With a footprint, the sample is weighed with f̂ (a glint query; pass
- * the scratch); with `footprint` NULL, with the smooth BRDF (as for paths after the first
- * bounce; `scratch` may then be NULL too). The pdf is the sampler's either way
- * (`glint_pdf`). No sample (`wi` below the horizon, or zero density) is `GLINT_OK` with
- * `valid` = 0.
+ * radius γ (Sec. 3.4). `wi` points toward the viewer, the sampled `wo` toward the light.
+ * `smooth_weight` is the smooth BRDF's weight (for paths after the first bounce); with a
+ * footprint, `footprint_weight` is f̂'s (a glint query; pass the scratch), else 0 and
+ * `scratch` may be NULL. The pdf is the sampler's either way (`glint_pdf`). `weight` is the
+ * deprecated field of both: `footprint_weight` with a footprint, else `smooth_weight`. No
+ * sample (`wi` below the horizon, or zero density) is `GLINT_OK` with `valid` = 0.
  *
  * # Safety
  * `material` is NULL or a live material; `scratch` NULL or a live scratch used by this thread

@@ -254,11 +254,12 @@ pub unsafe extern "C" fn glint_eval_smooth(
 
 /// Samples an outgoing direction for `wi` from four uniform numbers `u[0..4]` in [0, 1): two
 /// choose the cone's centre from the widened smooth model, two the direction in the cone of
-/// radius γ (Sec. 3.4). With a footprint, the sample is weighed with f̂ (a glint query; pass
-/// the scratch); with `footprint` NULL, with the smooth BRDF (as for paths after the first
-/// bounce; `scratch` may then be NULL too). The pdf is the sampler's either way
-/// (`glint_pdf`). No sample (`wi` below the horizon, or zero density) is `GLINT_OK` with
-/// `valid` = 0.
+/// radius γ (Sec. 3.4). `wi` points toward the viewer, the sampled `wo` toward the light.
+/// `smooth_weight` is the smooth BRDF's weight (for paths after the first bounce); with a
+/// footprint, `footprint_weight` is f̂'s (a glint query; pass the scratch), else 0 and
+/// `scratch` may be NULL. The pdf is the sampler's either way (`glint_pdf`). `weight` is the
+/// deprecated field of both: `footprint_weight` with a footprint, else `smooth_weight`. No
+/// sample (`wi` below the horizon, or zero density) is `GLINT_OK` with `valid` = 0.
 ///
 /// # Safety
 /// `material` is NULL or a live material; `scratch` NULL or a live scratch used by this thread
@@ -298,29 +299,46 @@ pub unsafe extern "C" fn glint_sample(
             )));
         }
         let brdf = &material.brdf;
-        let drawn = match at_footprint {
+        // The direction and pdf are the sampler's either way; the weights differ by f.
+        let drawn = brdf.sample_direction(wi, u).and_then(|wo| {
+            BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
+        });
+        let with_footprint = match at_footprint {
             Some((scratch, footprint)) => {
                 let footprint = footprint_from(footprint)?;
-                scratch.bind(brdf, &footprint, |bxdf| bxdf.sample(wi, u))
+                Some(scratch.bind(brdf, &footprint, |bxdf| bxdf.sample(wi, u)))
             }
-            None => brdf.sample_direction(wi, u).and_then(|wo| {
-                BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
-            }),
+            None => None,
         };
-        let answer = drawn.map_or(
-            GlintSample {
+        let answer = match drawn {
+            None => GlintSample {
                 wo: [0.0; 3],
                 pdf: 0.0,
                 weight: [0.0; 3],
                 valid: 0,
+                smooth_weight: [0.0; 3],
+                footprint_weight: [0.0; 3],
             },
-            |s| GlintSample {
-                wo: s.wo.to_array(),
-                pdf: s.pdf,
-                weight: s.weight.to_array(),
-                valid: 1,
-            },
-        );
+            Some(smooth) => {
+                // The footprint's sample is the same direction and pdf weighed with f̂; f̂ = 0
+                // gives weight 0 (and `weighted` still a sample), so it is `Some` here.
+                let footprint_weight = with_footprint
+                    .flatten()
+                    .map_or([0.0; 3], |s| s.weight.to_array());
+                GlintSample {
+                    wo: smooth.wo.to_array(),
+                    pdf: smooth.pdf,
+                    weight: if with_footprint.is_some() {
+                        footprint_weight
+                    } else {
+                        smooth.weight.to_array()
+                    },
+                    valid: 1,
+                    smooth_weight: smooth.weight.to_array(),
+                    footprint_weight,
+                }
+            }
+        };
         // SAFETY: non-NULL (checked above), writable by the contract.
         unsafe { write(sample, answer) };
         Ok(())
@@ -465,7 +483,7 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
     Ok(GlintParameters {
         // Exact: a whole number in [1, 2^53] (checked above).
         particles: p.particles as u64,
-        gamma: p.gamma_degrees.to_radians(),
+        gamma_radians: p.gamma_degrees.to_radians(),
         epsilon: p.epsilon,
         seed: p.seed,
         fresnel,

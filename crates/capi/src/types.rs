@@ -183,10 +183,18 @@ pub struct GlintSample {
     pub wo: [f64; 3],
     /// Its density in solid angle.
     pub pdf: f64,
-    /// f·cos θ_o / pdf per RGB channel: the reflected radiance for unit radiance from `wo`.
+    /// Deprecated (to be removed in the next version): `footprint_weight` when a footprint
+    /// was given, else `smooth_weight`.
     pub weight: [f64; 3],
     /// 1 for a sample, 0 when none was drawn (then every other field is 0).
     pub valid: c_int,
+    /// f_smooth·cos θ_o / pdf per RGB channel: the smooth BRDF's weight, for a path that
+    /// carries no footprint (after the first bounce).
+    pub smooth_weight: [f64; 3],
+    /// f̂·cos θ_o / pdf per RGB channel with the footprint given (a glint query): the
+    /// reflected radiance for unit radiance from `wo`, as Rust's `GlintBxdf::sample` and
+    /// Python's `footprint_weight` give it; 0 without a footprint.
+    pub footprint_weight: [f64; 3],
 }
 
 /// A glint material (opaque): its particle set, sampler and smooth limit. Immutable once

@@ -133,6 +133,8 @@ fn empty_sample() -> GlintSample {
         pdf: f64::NAN,
         weight: [f64::NAN; 3],
         valid: -1,
+        smooth_weight: [f64::NAN; 3],
+        footprint_weight: [f64::NAN; 3],
     }
 }
 
@@ -143,6 +145,8 @@ fn empty_answer_of_no_sample() -> GlintSample {
         pdf: 0.0,
         weight: [0.0; 3],
         valid: 0,
+        smooth_weight: [0.0; 3],
+        footprint_weight: [0.0; 3],
     }
 }
 
@@ -218,7 +222,7 @@ fn cases() -> Vec<Case> {
             },
             reference: GlintParameters {
                 particles: 100_000_000,
-                gamma: 3f64.to_radians(),
+                gamma_radians: 3f64.to_radians(),
                 epsilon: 0.0,
                 seed: 5,
                 fresnel: Fresnel::Conductor {
@@ -367,6 +371,14 @@ fn answers_are_glint_brdf_answers_bit_for_bit() {
                     brdf.sampling_pdf(wi_unit, wo),
                 )
             });
+            // Both weights under their own names: f̂'s with the footprint, the smooth one's
+            // always; the deprecated `weight` is the first with a footprint, else the second.
+            if let (Some(g), Some(s)) = (expected_glint, expected_smooth) {
+                assert_eq!(bits(&glint.footprint_weight), bits(&g.weight.to_array()));
+                assert_eq!(bits(&glint.smooth_weight), bits(&s.weight.to_array()));
+                assert_eq!(bits(&smooth.smooth_weight), bits(&s.weight.to_array()));
+                assert_eq!(bits(&smooth.footprint_weight), bits(&[0.0; 3]));
+            }
             for (got, expected) in [(glint, expected_glint), (smooth, expected_smooth)] {
                 let Some(expected) = expected else {
                     assert_eq!(got, empty_answer_of_no_sample());

@@ -200,7 +200,7 @@ mod tests {
     fn the_material_cache_is_bounded() {
         let line = |seed: usize| {
             format!(
-                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, "gamma_deg": 1.0, "seed": {seed}}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "seed": {seed}}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
             )
         };
         let mut requests = JsonLines::new();
@@ -230,7 +230,7 @@ mod tests {
     fn the_material_cache_is_bounded_in_memory() {
         let line = |seed: usize| {
             format!(
-                r#"{{"op": "eval", "material": {{"distribution": "ggx", "alpha": 1e-4, "alpha_y": 1, "particles": 1e6, "gamma_deg": 1.0, "seed": {seed}}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+                r#"{{"op": "eval", "material": {{"distribution": "ggx", "alpha": 1e-4, "alpha_y": 1, "particles": 1e6, "gamma_degrees": 1.0, "seed": {seed}}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
             )
         };
         let mut requests = JsonLines::new();
@@ -243,5 +243,26 @@ mod tests {
         }
         assert_eq!(requests.cached_materials(), MATERIAL_CACHE_BYTES / one);
         assert_eq!(requests.answer(&line(0)).unwrap(), first);
+    }
+
+    /// `gamma_degrees` names γ; `gamma_deg`, its older name, answers the same, bit for bit;
+    /// both at once are an error naming them.
+    #[test]
+    fn gamma_deg_is_read_as_gamma_degrees() {
+        let line = |field: &str| {
+            format!(
+                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, {field}, "seed": 4}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+            )
+        };
+        let mut requests = JsonLines::new();
+        let new = requests.answer(&line(r#""gamma_degrees": 2.5"#)).unwrap();
+        let old = requests.answer(&line(r#""gamma_deg": 2.5"#)).unwrap();
+        assert_eq!(new, old);
+        let both = requests.answer(&line(r#""gamma_degrees": 2.5, "gamma_deg": 2.5"#));
+        let message = both.unwrap_err();
+        assert!(
+            message.contains("both gamma_degrees and gamma_deg"),
+            "{message}"
+        );
     }
 }

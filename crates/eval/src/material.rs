@@ -39,8 +39,9 @@ pub struct MaterialSpec {
     pub alpha_y: Option<f64>,
     /// N, a whole number in [1, 2⁵³].
     pub particles: f64,
-    /// γ in degrees, in (0, 60].
-    pub gamma_deg: f64,
+    /// γ in degrees, in [5.73·10⁻⁵, 60] (10⁻⁶ rad to 60°). JSON's `gamma_degrees` (or its
+    /// older name `gamma_deg`, deprecated).
+    pub gamma_degrees: f64,
     /// ε of Eq. 10; defaults to 0.1.
     pub epsilon: Option<f64>,
     /// The particle set, any 64-bit unsigned number; defaults to 0.
@@ -61,11 +62,12 @@ pub struct MaterialSpec {
 }
 
 /// The fields a JSON material may hold.
-const KNOWN_FIELDS: [&str; 13] = [
+const KNOWN_FIELDS: [&str; 14] = [
     "distribution",
     "alpha",
     "alpha_y",
     "particles",
+    "gamma_degrees",
     "gamma_deg",
     "epsilon",
     "seed",
@@ -80,13 +82,13 @@ const KNOWN_FIELDS: [&str; 13] = [
 impl MaterialSpec {
     /// The required fields, every optional one at its default.
     #[must_use]
-    pub fn new(distribution: &str, alpha: f64, particles: f64, gamma_deg: f64) -> Self {
+    pub fn new(distribution: &str, alpha: f64, particles: f64, gamma_degrees: f64) -> Self {
         Self {
             distribution: distribution.to_owned(),
             alpha,
             alpha_y: None,
             particles,
-            gamma_deg,
+            gamma_degrees,
             epsilon: None,
             seed: None,
             fresnel: FresnelSpec::None,
@@ -132,15 +134,15 @@ impl MaterialSpec {
             return Err(particles_error(particles));
         }
         parameters.particles = particles as u64;
-        let gamma_deg = finite(self.gamma_deg, "material.gamma_deg")?;
+        let gamma_deg = finite(self.gamma_degrees, "material.gamma_degrees")?;
         // The library's bounds, [10⁻⁶ rad, 60°], in the unit of this field.
         if !(gamma_deg >= 1e-6f64.to_degrees() && gamma_deg <= 60.0) {
             return Err(format!(
-                "material.gamma_deg = {gamma_deg:?} must be in [{:.3e}, 60] degrees",
+                "material.gamma_degrees = {gamma_deg:?} must be in [{:.3e}, 60] degrees",
                 1e-6f64.to_degrees()
             ));
         }
-        parameters.gamma = gamma_deg.to_radians();
+        parameters.gamma_radians = gamma_deg.to_radians();
         if let Some(epsilon) = self.epsilon {
             parameters.epsilon = finite(epsilon, "material.epsilon")?;
         }
@@ -239,7 +241,7 @@ impl MaterialSpec {
             alpha: number(m, "alpha", "material.alpha")?,
             alpha_y: optional_number(m, "alpha_y", "material.alpha_y")?,
             particles: particles_from_json(m)?,
-            gamma_deg: number(m, "gamma_deg", "material.gamma_deg")?,
+            gamma_degrees: gamma_degrees_from_json(m)?,
             epsilon: optional_number(m, "epsilon", "material.epsilon")?,
             seed: seed_from_json(m.get("seed"))?,
             fresnel: fresnel_from_json(m.get("fresnel"))?,
@@ -269,6 +271,18 @@ pub(crate) fn known_fields(
             "unknown {what} `{unknown}` (known: {})",
             known.join(", ")
         )),
+    }
+}
+
+/// `gamma_degrees` of a JSON material, or `gamma_deg`, its older name (deprecated, read for
+/// one more version); both at once are an error.
+fn gamma_degrees_from_json(m: &Map<String, Value>) -> Result<f64, String> {
+    match (m.contains_key("gamma_degrees"), m.contains_key("gamma_deg")) {
+        (true, true) => {
+            Err("material has both gamma_degrees and gamma_deg (its older name): give one".into())
+        }
+        (false, true) => number(m, "gamma_deg", "material.gamma_deg"),
+        _ => number(m, "gamma_degrees", "material.gamma_degrees"),
     }
 }
 

@@ -95,7 +95,7 @@ fn base() -> Value {
     json!({
         "op": "eval",
         "material": {"distribution": "beckmann", "alpha": 0.1, "alpha_y": 0.2,
-                     "particles": 1e6, "gamma_deg": 1.0, "epsilon": 0.1, "seed": 3,
+                     "particles": 1e6, "gamma_degrees": 1.0, "epsilon": 0.1, "seed": 3,
                      "pdf_points": 16,
                      "fresnel": {"conductor": {"eta": [0.2, 1.0, 1.1], "k": [3.9, 0.0, 2.2]}}},
         "uv": [0.3, 0.4], "duv_dx": [0.001, 0.0], "duv_dy": [0.0, 0.001],

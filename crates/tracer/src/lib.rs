@@ -50,7 +50,7 @@
 //!     distribution = "beckmann"
 //!     alpha = 0.1
 //!     particles = 1e8
-//!     gamma = 1.0
+//!     gamma_degrees = 1.0
 //!
 //!     [[shapes]]
 //!     type = "rectangle"

@@ -627,7 +627,7 @@ mod tests {
         .unwrap();
         let mut parameters =
             GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap());
-        parameters.gamma = 5f64.to_radians();
+        parameters.gamma_radians = 5f64.to_radians();
         let glint = Material::Glint(GlintMaterial {
             brdf: Arc::new(DiscreteBrdf::new(parameters).unwrap()),
             uv_scale: 1.0,

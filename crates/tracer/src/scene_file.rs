@@ -317,8 +317,9 @@ struct GlintSection {
     distribution: DistributionName,
     alpha: Roughness,
     particles: f64,
-    /// Degrees.
-    gamma: f64,
+    /// The cone radius γ in degrees; `gamma`, its older name, is still read (deprecated).
+    #[serde(alias = "gamma")]
+    gamma_degrees: f64,
     epsilon: Option<f64>,
     seed: Option<u64>,
     fresnel: Option<FresnelSection>,
@@ -959,16 +960,16 @@ impl Builder<'_> {
         parameters.particles = g.particles as u64;
         // glint-brdf's range, [10⁻⁶ rad, 60°].
         let smallest = 1e-6f64.to_degrees();
-        if !(g.gamma >= smallest && g.gamma <= 60.0) {
+        if !(g.gamma_degrees >= smallest && g.gamma_degrees <= 60.0) {
             return self.fail(
-                format!("{field}.gamma"),
+                format!("{field}.gamma_degrees"),
                 format!(
                     "the cone radius must be in [{smallest:.3e}°, 60°] (10⁻⁶ rad to 60°), got {}°",
-                    shown(g.gamma)
+                    shown(g.gamma_degrees)
                 ),
             );
         }
-        parameters.gamma = g.gamma.to_radians();
+        parameters.gamma_radians = g.gamma_degrees.to_radians();
         if let Some(epsilon) = g.epsilon {
             parameters.epsilon = epsilon;
         }
@@ -1646,6 +1647,37 @@ power = 10
         assert_eq!((scene.settings.width, scene.settings.height), (8, 6));
     }
 
+    /// `gamma_degrees` names the cone radius; `gamma`, its older name, is still read with the
+    /// same meaning; both at once are an error naming the duplicate.
+    #[test]
+    fn gamma_degrees_and_its_older_name_mean_the_same() {
+        let gamma = |scene: &Scene| {
+            let glint = scene.materials.iter().find_map(|m| match m {
+                Material::Mix(parts) => parts.iter().find_map(|(_, m)| match m {
+                    Material::Glint(g) => Some(g.brdf.parameters().gamma_radians),
+                    _ => None,
+                }),
+                _ => None,
+            });
+            glint.expect("VALID mixes a glint material")
+        };
+        assert!(VALID.contains("gamma = 2"));
+        let old = parse_scene(VALID, Path::new("old.toml")).unwrap();
+        let new = parse_scene(
+            &VALID.replace("gamma = 2", "gamma_degrees = 2"),
+            Path::new("new.toml"),
+        )
+        .unwrap();
+        assert_eq!(gamma(&old), 2f64.to_radians());
+        assert_eq!(gamma(&old), gamma(&new));
+        let both = parse_scene(
+            &VALID.replace("gamma = 2", "gamma = 2\ngamma_degrees = 2"),
+            Path::new("both.toml"),
+        );
+        let message = both.unwrap_err().to_string();
+        assert!(message.contains("gamma_degrees"), "{message}");
+    }
+
     /// Each mistake gets an error naming the field and the problem, never a panic.
     #[test]
     fn scene_errors_name_the_field_and_the_problem() {
@@ -1684,7 +1716,7 @@ power = 10
             (
                 "gamma = 2",
                 "gamma = 90",
-                "materials.sparkle.gamma",
+                "materials.sparkle.gamma_degrees",
                 "[5.730e-5°, 60°]",
             ),
             (

@@ -81,8 +81,9 @@ int main(void) {
                e.f_hat[0], smooth[0], e.nodes_visited);
     }
 
-    /* Sampling: with the footprint (weighed with f_hat) and without one (weighed with the
-     * smooth BRDF, as for paths after the first bounce). The pdf is the sampler's. */
+    /* Sampling: with the footprint, footprint_weight weighs with f_hat; smooth_weight weighs
+     * with the smooth BRDF (for paths after the first bounce, which pass no footprint). The
+     * direction and the pdf are the sampler's either way. */
     const double u[4] = {0.3, 0.6, 0.2, 0.9};
     const GlintFootprint *footprints[2] = {&footprint, NULL};
     for (int i = 0; i < 2; i++) {
@@ -91,9 +92,10 @@ int main(void) {
         expect(s.valid, "these uniform numbers draw a sample");
         double pdf;
         check(glint_pdf(material, wi, s.wo, &pdf), "glint_pdf");
-        printf("sample %s footprint: wo (%.6f, %.6f, %.6f), pdf %.6g, weight %.6g\n",
+        printf("sample %s footprint: wo (%.6f, %.6f, %.6f), pdf %.6g, footprint_weight %.6g, "
+               "smooth_weight %.6g\n",
                footprints[i] ? "with a" : "without", s.wo[0], s.wo[1], s.wo[2], s.pdf,
-               s.weight[0]);
+               s.footprint_weight[0], s.smooth_weight[0]);
         expect(pdf == s.pdf, "glint_pdf gives the sample's pdf");
     }
 
