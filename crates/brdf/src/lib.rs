@@ -75,3 +75,8 @@ pub use smooth::MicrofacetBrdf;
 #[doc = include_str!("../../../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
+
+/// `docs/integration.md`'s examples, compiled and run as doctests for the same reason.
+#[doc = include_str!("../../../docs/integration.md")]
+#[cfg(doctest)]
+pub struct IntegrationDoctests;
