@@ -10,10 +10,12 @@
 //! strategies and the deterministic [`SplitMix64`] stream share one generator.
 #![deny(missing_docs)]
 
+#[cfg(feature = "checkers")]
 pub mod counts;
 pub mod geometry;
 pub mod light_cones;
 pub mod mirror_check;
+#[cfg(feature = "checkers")]
 pub mod sampling;
 
 /// SplitMix64 (Steele, Lea and Flood 2014): a tiny, seedable generator of uniform numbers for

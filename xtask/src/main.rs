@@ -16,22 +16,40 @@
 //! - `cargo xtask bench [--quick] [--renders-only]`: runs the criterion benchmarks and writes the
 //!   per-call table that `docs/performance.md` quotes to `target/bench/summary.md`, and what a
 //!   frame of every scene pays for glints (also written into `docs/performance.md`).
+//!
+//! `validate` and `bench` need the `full` feature (the statistical checkers and criterion),
+//! which `cargo xtask` leaves out so that the first `cargo xtask render` compiles only what it
+//! runs; without it they build and run the full command ([`full_build`]).
 
 mod assets;
+#[cfg(feature = "full")]
 mod bench;
+#[cfg(feature = "full")]
 mod bench_frames;
 mod eval;
+#[cfg(not(feature = "full"))]
+mod full_build;
+#[cfg(feature = "full")]
 mod plot;
 mod render;
 mod scenes;
+#[cfg(feature = "full")]
 mod validate;
+#[cfg(feature = "full")]
 mod validate_brdf;
+#[cfg(feature = "full")]
 mod validate_counts;
+#[cfg(feature = "full")]
 mod validate_footprints;
+#[cfg(feature = "full")]
 mod validate_light_cones;
+#[cfg(feature = "full")]
 mod validate_pdf;
+#[cfg(feature = "full")]
 mod validate_render;
+#[cfg(feature = "full")]
 mod validate_stability;
+#[cfg(feature = "full")]
 mod validate_trade;
 
 use clap::{Parser, Subcommand};
@@ -94,12 +112,16 @@ fn main() -> anyhow::Result<()> {
         Command::Render(args) => render::run(&args),
         Command::Scenes(args) => scenes::run(&args),
         Command::Assets { out } => assets::run(&out.unwrap_or_else(assets::assets_folder)),
+        #[cfg(feature = "full")]
         Command::Validate { quick, out } => validate::run(quick, &out),
+        #[cfg(feature = "full")]
         Command::Bench {
             quick,
             renders_only,
             out,
         } => bench::run(quick, renders_only, &out),
+        #[cfg(not(feature = "full"))]
+        Command::Validate { .. } | Command::Bench { .. } => full_build::run_again(),
         Command::Eval { file } => {
             let failed = eval::run(file.as_deref())?;
             if failed > 0 {
