@@ -185,7 +185,9 @@ class Material:
     def eval(self, wi, wo, uv, duv_dx, duv_dy):
         """f̂ and its statistics for n queries.
 
-        ``wi``, ``wo``: (n, 3) directions in the local frame (z = normal), normalized on input;
+        ``wi``, ``wo``: (n, 3) directions in the local frame (z = normal), ``wi`` toward the
+        viewer and ``wo`` toward the light (pbrt-v4's names are the reverse), normalized on
+        input;
         ``uv``, ``duv_dx``, ``duv_dy``: (n, 2), the footprint
         {uv + s·duv_dx + t·duv_dy : s, t ∈ [−½, ½]}, each edge component within ±1e15. Returns a dict of arrays: ``count``,
         ``expected_count``, ``d_hat``, ``f_hat``, ``f_smooth`` ((n,) when F is grey, else

@@ -365,7 +365,9 @@ enum GlintStatus glint_scratch_free(struct GlintScratch *scratch);
 
 /**
  * The glint BRDF f̂ at a footprint for (`wi`, `wo`), with what its count-tree query found.
- * Directions need not have unit length (they are normalized; unit vectors are used as they
+ * `wi` points toward the viewer and `wo` toward the light, in the local shading frame (z the
+ * normal): the paper's and Mitsuba's names, the reverse of pbrt-v4's. Directions need not
+ * have unit length (they are normalized; unit vectors are used as they
  * are); directions below the horizon give zeros.
  * `GLINT_INVALID_ARGUMENT` for a direction that is not finite or zero, or a footprint that
  * is not finite.
