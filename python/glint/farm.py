@@ -33,6 +33,9 @@ import numpy as np
 from . import __version__
 from ._render import render, write_exr, write_png
 
+#: The most frames one run renders, as ``cargo xtask render --frames``.
+MAX_FRAMES = 100_000
+
 #: The summary fields summed over a frame's tiles.
 _SUMMED = ("seconds", "rays", "glint_queries", "negligible_queries", "clamped_samples",
            "discarded_samples")
@@ -160,6 +163,9 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
         raise FileNotFoundError(f"scene file {scene!r} does not exist")
     if isinstance(frames, tuple) and len(frames) == 2:
         frames = range(frames[0], frames[1] + 1)
+    if len(frames) > MAX_FRAMES:
+        raise ValueError(f"{len(frames)} frames, more than the limit of {MAX_FRAMES} per run "
+                         "(as cargo xtask render --frames; split the range)")
     frames = list(frames)
     os.makedirs(out, exist_ok=True)
     stem = os.path.splitext(os.path.basename(scene))[0]

@@ -149,6 +149,15 @@ def test_render_errors_name_the_problem(tmp_path):
         glint.write_exr(tmp_path / "no" / "such" / "folder.exr", np.zeros((2, 2, 3)))
 
 
+def test_farm_arguments_are_checked_before_any_work(tmp_path):
+    from glint.farm import render_frames
+    scene = _scene(tmp_path)
+    with pytest.raises(ValueError, match="more than the limit"):
+        render_frames(scene, (0, 10**9), tmp_path / "out")
+    with pytest.raises(FileNotFoundError):
+        render_frames(tmp_path / "missing.toml", (0, 1), tmp_path / "out")
+
+
 def test_tiles_cover_the_image_once():
     from glint.farm import tiles
     covered = np.zeros((33, 50), dtype=int)
