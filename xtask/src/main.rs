@@ -66,6 +66,10 @@ enum Command {
         /// Where to write the report (default: target/validate).
         #[arg(long, default_value = "target/validate")]
         out: std::path::PathBuf,
+        /// Only the checks whose name contains this text (as the progress bar shows them, e.g.
+        /// "footprints"); the report then holds those alone.
+        #[arg(long)]
+        only: Option<String>,
     },
     /// Evaluate the model for JSON Lines requests (from FILE, or standard input).
     Eval {
@@ -94,7 +98,7 @@ fn main() -> anyhow::Result<()> {
         Command::Render(args) => render::run(&args),
         Command::Scenes(args) => scenes::run(&args),
         Command::Assets { out } => assets::run(&out.unwrap_or_else(assets::assets_folder)),
-        Command::Validate { quick, out } => validate::run(quick, &out),
+        Command::Validate { quick, out, only } => validate::run(quick, &out, only.as_deref()),
         Command::Bench {
             quick,
             renders_only,
