@@ -86,6 +86,10 @@ enum Command {
         /// docs/performance.md.
         #[arg(long)]
         renders_only: bool,
+        /// With --renders-only: only the scene with this file stem, written to frames.md alone
+        /// (docs/performance.md keeps its table of every scene).
+        #[arg(long, requires = "renders_only")]
+        only: Option<String>,
         /// Where to write the summary (default: target/bench).
         #[arg(long, default_value = "target/bench")]
         out: std::path::PathBuf,
@@ -102,8 +106,9 @@ fn main() -> anyhow::Result<()> {
         Command::Bench {
             quick,
             renders_only,
+            only,
             out,
-        } => bench::run(quick, renders_only, &out),
+        } => bench::run(quick, renders_only, only.as_deref(), &out),
         Command::Eval { file } => {
             let failed = eval::run(file.as_deref())?;
             if failed > 0 {

@@ -6,15 +6,21 @@
 //!    correlation of their glints must be high (≥ 0.85), and low (≤ 0.4) for the `"first_hit"`
 //!    render (smooth in the mirror) and for a camera moved sideways by eight pixels. The same
 //!    holds for a polished conductor (α = 10⁻⁴, F ≈ 1, also its mean luminance) and a black
-//!    lacquer (a plastic coat of α = 10⁻⁴), whose footprints go on through the sampled lobe.
+//!    lacquer (a plastic coat of α = 10⁻⁴), whose footprints go on through the sampled lobe
+//!    (at a quarter of the samples in the full run).
 //! 2. Continuity in α: the correlation of the glints in a conductor with the mirror's, for α
-//!    in steps of √2 from 10⁻³ toward the roughness limit 0.05 (`SWEEP_ALPHAS`): it must not
+//!    in steps of √2 from 10⁻³ toward the roughness limit 0.05 (`SWEEP_ALPHAS`; in the full
+//!    run at half the width and height and a quarter of the samples): it must not
 //!    rise by more than 0.05 (noise) nor fall by more than 0.2 per step, and end below 0.3.
 //! 3. Dense materials converge to the smooth render at the second hit: with N = 10¹² the
-//!    `"all"` render of the panel in each reflector matches the smooth render (equal samples
-//!    and seeds) within 2% in mean and in every 16 × 16 block within 5% of the image's mean. At
-//!    γ = 2° f̂ converges to f convolved with the cone, not to f, which leaves a bias of about
-//!    1% (see `validate_render.rs`).
+//!    `"all"` render of the panel in each reflector (the mirror, conductors of α = 10⁻⁴ and
+//!    0.02, the plastic coat) matches the smooth render (equal samples and seeds) within 2% in
+//!    mean and in every 16 × 16 block within 5% of the image's mean. At γ = 2° f̂ converges to
+//!    f convolved with the cone, not to f, which leaves a bias of about 1% (see
+//!    `validate_render.rs`).
+//!
+//! The full run takes about 3.5 minutes on two cores (214 s; 33 renders at full size took
+//! 606 s, hence the smaller glossy checks).
 
 use std::fmt::Write as _;
 
@@ -26,26 +32,34 @@ use crate::validate::Check;
 
 pub(crate) fn footprints(quick: bool, report: &mut String) -> anyhow::Result<Check> {
     let (width, height, spp) = if quick { (64, 48, 16) } else { (160, 120, 64) };
+    // The glossy reflectors at a quarter of the mirror's samples, and the sweep also at a
+    // quarter of its pixels, in the full run.
+    let glossy_spp = if quick { spp } else { spp / 4 };
     let reflectors = [
-        ("mirror", Reflector::Mirror),
-        ("conductor α = 10⁻⁴", Reflector::Conductor { alpha: 1e-4 }),
+        ("mirror", Reflector::Mirror, spp),
+        (
+            "conductor α = 10⁻⁴",
+            Reflector::Conductor { alpha: 1e-4 },
+            glossy_spp,
+        ),
         (
             "plastic coat α = 10⁻⁴",
             Reflector::PlasticCoat { alpha: 1e-4 },
+            glossy_spp,
         ),
     ];
     writeln!(
         report,
         "## Footprints through mirrors and glossy reflectors\n\n\
          A glittery panel (N = 3·10⁶, α = 0.3, γ = 2°) seen in a flat reflector at {width} × \
-         {height}, {spp} spp, against the mirrored camera's direct view (the correlation of the \
-         glints, each pixel minus its 8 × 8 block mean):\n\n\
-         | reflector | `\"all\"` | mean luminance | virtual camera moved 8 pixels | \
-         `\"first_hit\"` (smooth in the reflector) |\n|---|---|---|---|---|"
+         {height} against the mirrored camera's direct view (the correlation of the glints, each \
+         pixel minus its 8 × 8 block mean):\n\n\
+         | reflector | spp | `\"all\"` | mean luminance | virtual camera moved 8 pixels | \
+         `\"first_hit\"` (smooth in the reflector) |\n|---|---|---|---|---|---|"
     )?;
     let mut checks_ok = true;
     let mut summary = String::new();
-    for (name, reflector) in reflectors {
+    for (name, reflector, spp) in reflectors {
         let check = MirrorCheck::run(reflector, width, height, spp, 3e6)?;
         let scaled = matches!(reflector, Reflector::PlasticCoat { .. });
         let ok = check.matched >= 0.85
@@ -60,7 +74,7 @@ pub(crate) fn footprints(quick: bool, report: &mut String) -> anyhow::Result<Che
         };
         writeln!(
             report,
-            "| {name} | {:.3} | {mean} | {:.3} | {:.3} |",
+            "| {name} | {spp} | {:.3} | {mean} | {:.3} | {:.3} |",
             check.matched, check.shifted, check.first_hit
         )?;
         write!(
@@ -69,7 +83,12 @@ pub(crate) fn footprints(quick: bool, report: &mut String) -> anyhow::Result<Che
             check.matched, check.first_hit
         )?;
     }
-    let sweep = alpha_sweep(&SWEEP_ALPHAS, [width, height, spp], 3e6)?;
+    let sweep_size = if quick {
+        [width, height, spp]
+    } else {
+        [width / 2, height / 2, spp / 4]
+    };
+    let sweep = alpha_sweep(&SWEEP_ALPHAS, sweep_size, 3e6)?;
     let sweep_ok = sweep[0] >= 0.85
         && sweep
             .windows(2)
@@ -77,8 +96,10 @@ pub(crate) fn footprints(quick: bool, report: &mut String) -> anyhow::Result<Che
         && sweep[SWEEP_ALPHAS.len() - 1] < 0.3;
     writeln!(
         report,
-        "\nThe glints in a conductor (F ≈ 1) against those in the mirror, as α grows (each \
-         pixel minus its 8 × 8 block mean):\n\n| α | correlation with the mirror's |\n|---|---|"
+        "\nThe glints in a conductor (F ≈ 1) against those in the mirror, as α grows, at {} × {}, \
+         {} spp (each pixel minus its 8 × 8 block mean):\n\n\
+         | α | correlation with the mirror's |\n|---|---|",
+        sweep_size[0], sweep_size[1], sweep_size[2]
     )?;
     for (alpha, r) in SWEEP_ALPHAS.iter().zip(&sweep) {
         writeln!(report, "| {alpha} | {r:.3} |")?;
