@@ -216,13 +216,24 @@ pub fn widened(differential: &RayDifferential, w: f64) -> Option<RayDifferential
 /// reflection closest to it where det M < 0 (any orthogonal U serves a singular M; a zero M
 /// gives the identity).
 fn polar_factor([a, b, c, d]: [f64; 4]) -> [f64; 4] {
-    if a * d - b * c >= 0.0 {
-        let theta = (c - b).atan2(a + d);
-        let (sin, cos) = theta.sin_cos();
+    // The rotation by θ = atan2(c − b, a + d) (or the reflection about θ/2 with
+    // θ = atan2(c + b, a − d)), its cosine and sine taken as p/r and q/r without the angle.
+    let rotation = a * d - b * c >= 0.0;
+    let (p, q) = if rotation {
+        (a + d, c - b)
+    } else {
+        (a - d, c + b)
+    };
+    // The offsets are differences of unit vectors (at most 2): no overflow.
+    let r = (p * p + q * q).sqrt();
+    let (cos, sin) = if r > 0.0 && r.is_finite() {
+        (p / r, q / r)
+    } else {
+        (1.0, 0.0)
+    };
+    if rotation {
         [cos, -sin, sin, cos]
     } else {
-        let theta = (c + b).atan2(a - d);
-        let (sin, cos) = theta.sin_cos();
         [cos, sin, sin, -cos]
     }
 }
