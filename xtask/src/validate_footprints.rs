@@ -19,8 +19,8 @@
 //!    f convolved with the cone, not to f, which leaves a bias of about 1% (see
 //!    `validate_render.rs`).
 //!
-//! The full run takes about 3.5 minutes on two cores (214 s; 33 renders at full size took
-//! 606 s, hence the smaller glossy checks).
+//! The full run takes 163–214 s on two cores (33 renders at full size took 606 s, hence the
+//! smaller glossy checks).
 
 use std::fmt::Write as _;
 
