@@ -107,9 +107,14 @@ fn workspace_root() -> PathBuf {
         .to_path_buf()
 }
 
-pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result<()> {
+pub(crate) fn run(
+    quick: bool,
+    renders_only: bool,
+    only: Option<&str>,
+    out: &Path,
+) -> anyhow::Result<()> {
     if renders_only {
-        let table = crate::bench_frames::run(quick, out)?;
+        let table = crate::bench_frames::run(quick, only, out)?;
         println!("{table}\n{}", out.join("frames.md").display());
         return Ok(());
     }
@@ -199,7 +204,7 @@ pub(crate) fn run(quick: bool, renders_only: bool, out: &Path) -> anyhow::Result
     writeln!(
         table,
         "\n## What a frame pays for glints\n{}",
-        crate::bench_frames::run(quick, out)?
+        crate::bench_frames::run(quick, None, out)?
     )?;
     scene_table(quick, out, &mut table)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;

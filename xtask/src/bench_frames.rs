@@ -233,14 +233,22 @@ fn split_samples(script: &str) -> Vec<f64> {
         .collect()
 }
 
-/// Measures every scene, writes the tables to `out/frames.md` and into `docs/performance.md`
-/// (between its markers), and returns them.
-pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<String> {
+/// Measures every scene (or only the one whose file stem is `only`), writes the tables to
+/// `out/frames.md` and, when every scene was measured, into `docs/performance.md` (between its
+/// markers), and returns them.
+pub(crate) fn run(quick: bool, only: Option<&str>, out: &Path) -> anyhow::Result<String> {
     crate::assets::ensure()?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut costs = Vec::new();
     let mut profiles = Vec::new();
-    for path in crate::scenes::scene_files()? {
+    let files: Vec<_> = crate::scenes::scene_files()?
+        .into_iter()
+        .filter(|path| only.is_none_or(|only| path.file_stem().is_some_and(|stem| stem == only)))
+        .collect();
+    if files.is_empty() {
+        anyhow::bail!("no scene named {:?} in scenes/", only.unwrap_or_default());
+    }
+    for path in files {
         let cost = measure(&path, quick)?;
         profiles.push(profile(&path, &cost.settings, out));
         costs.push(cost);
@@ -248,6 +256,9 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<String> {
     let tables = tables(&costs, &profiles, quick)?;
     let path = out.join("frames.md");
     std::fs::write(&path, &tables).with_context(|| format!("writing {}", path.display()))?;
+    if only.is_some() {
+        return Ok(tables);
+    }
     let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/performance.md");
     let text =
         std::fs::read_to_string(&docs).with_context(|| format!("reading {}", docs.display()))?;

@@ -84,6 +84,10 @@ enum Command {
         /// Where to write the report (default: target/validate).
         #[arg(long, default_value = "target/validate")]
         out: std::path::PathBuf,
+        /// Only the checks whose name contains this text (as the progress bar shows them, e.g.
+        /// "footprints"); the report then holds those alone.
+        #[arg(long)]
+        only: Option<String>,
     },
     /// Evaluate the model for JSON Lines requests (from FILE, or standard input).
     Eval {
@@ -100,6 +104,10 @@ enum Command {
         /// docs/performance.md.
         #[arg(long)]
         renders_only: bool,
+        /// With --renders-only: only the scene with this file stem, written to frames.md alone
+        /// (docs/performance.md keeps its table of every scene).
+        #[arg(long, requires = "renders_only")]
+        only: Option<String>,
         /// Where to write the summary (default: target/bench).
         #[arg(long, default_value = "target/bench")]
         out: std::path::PathBuf,
@@ -113,13 +121,14 @@ fn main() -> anyhow::Result<()> {
         Command::Scenes(args) => scenes::run(&args),
         Command::Assets { out } => assets::run(&out.unwrap_or_else(assets::assets_folder)),
         #[cfg(feature = "full")]
-        Command::Validate { quick, out } => validate::run(quick, &out),
+        Command::Validate { quick, out, only } => validate::run(quick, &out, only.as_deref()),
         #[cfg(feature = "full")]
         Command::Bench {
             quick,
             renders_only,
+            only,
             out,
-        } => bench::run(quick, renders_only, &out),
+        } => bench::run(quick, renders_only, only.as_deref(), &out),
         #[cfg(not(feature = "full"))]
         Command::Validate { .. } | Command::Bench { .. } => full_build::run_again(),
         Command::Eval { file } => {

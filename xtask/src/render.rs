@@ -57,7 +57,7 @@ pub(crate) struct RenderArgs {
     #[arg(long)]
     pub(crate) glint_light_cones: bool,
     /// Where glint materials use the pixel footprint: `first_hit` (the paper's), `all` (also
-    /// through perfect mirrors) or `never` (default: the scene's).
+    /// through perfect mirrors and glossy lobes of α ≤ 0.05) or `never` (default: the scene's).
     #[arg(long, value_name = "all|first_hit|never", value_parser = parse_glint_footprints)]
     pub(crate) glint_footprints: Option<glint_tracer::GlintFootprints>,
     /// Render only pixels X0..X1 × Y0..Y1 of the image (half-open, row 0 at the top, as

@@ -60,14 +60,18 @@ pub(crate) struct Check {
     pub(crate) summary: String,
 }
 
-pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
+pub(crate) fn run(quick: bool, out: &Path, only: Option<&str>) -> anyhow::Result<()> {
     let sizes = Sizes::new(quick);
     let started = Instant::now();
     let mut report = String::new();
     writeln!(
         report,
-        "# glint validation report\n\nMode: {}. Suites: geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade, renders.\n",
-        if quick { "quick" } else { "full" }
+        "# glint validation report\n\nMode: {}. Suites: {}.\n",
+        if quick { "quick" } else { "full" },
+        only.map_or_else(
+            || "geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade, renders".to_owned(),
+            |only| format!("only the checks whose name contains {only:?}"),
+        )
     )?;
     // Each check with the name the progress bar shows while it runs.
     type Suite<'a> = Box<dyn FnOnce(&mut String) -> anyhow::Result<Check> + 'a>;
@@ -135,10 +139,17 @@ pub(crate) fn run(quick: bool, out: &Path) -> anyhow::Result<()> {
             Box::new(|r| crate::validate_light_cones::light_cones(quick, r)),
         ),
         (
-            "renders: footprints in mirrors",
+            "renders: footprints in mirrors and glossy reflectors",
             Box::new(|r| crate::validate_footprints::footprints(quick, r)),
         ),
     ];
+    let suites: Vec<(&str, Suite)> = suites
+        .into_iter()
+        .filter(|(name, _)| only.is_none_or(|only| name.contains(only)))
+        .collect();
+    if suites.is_empty() {
+        anyhow::bail!("no check's name contains {:?}", only.unwrap_or_default());
+    }
     // indicatif hides the bar when the output is not a terminal.
     let bar = indicatif::ProgressBar::new(suites.len() as u64);
     bar.set_style(

@@ -7,7 +7,9 @@ use glint_brdf::frame::orthonormal_basis;
 
 use crate::accel::Primitive;
 use crate::camera::RayDifferential;
-use crate::differentials::{normal_derivatives, reflect, reflected_differential};
+use crate::differentials::{
+    glossy_differential, normal_derivatives, reflect, reflected_differential,
+};
 use crate::scene::Scene;
 use crate::shape::{Ray, SurfaceHit};
 
@@ -37,6 +39,30 @@ pub(crate) fn mirror_differential(
 ) -> Option<RayDifferential> {
     let dn = normal_derivatives(&primitive.geometry, scene.accelerator.meshes(), surface);
     reflected_differential(surface, dn, incoming, reflected)
+}
+
+/// The ray differential `incoming` carried through a glossy bounce at `surface` of
+/// `primitive` onto `reflected`, the sample of a lobe of roughness `alpha` that reflected the
+/// local `wi` into `wo` in `frame` (about their half vector; see
+/// [`crate::differentials::glossy_differential`]), or `None` when it is lost or the lobe is too
+/// rough to carry a footprint.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn glossy_bounce_differential(
+    scene: &Scene,
+    primitive: &Primitive,
+    surface: &SurfaceHit,
+    frame: &Frame,
+    (wi, wo): (DVec3, DVec3),
+    alpha: f64,
+    incoming: &RayDifferential,
+    reflected: Ray,
+) -> Option<RayDifferential> {
+    if !(alpha <= crate::differentials::GLOSSY_FOOTPRINT_MAX_ALPHA) {
+        return None;
+    }
+    let facet = frame.to_world((wi + wo).try_normalize()?);
+    let dn = normal_derivatives(&primitive.geometry, scene.accelerator.meshes(), surface);
+    glossy_differential(surface, facet, alpha, dn, incoming, reflected)
 }
 
 /// A local shading frame: z the shading normal, x along ∂p/∂u.

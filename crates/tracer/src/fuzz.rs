@@ -200,6 +200,11 @@ const SCENES: &[(&str, &str, u32)] = &[
         2,
     ),
     (
+        "glitter_polished.toml",
+        include_str!("../../../scenes/glitter_polished.toml"),
+        2,
+    ),
+    (
         "stained_glass.toml",
         include_str!("../../../scenes/stained_glass.toml"),
         3,

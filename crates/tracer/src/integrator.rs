@@ -4,9 +4,11 @@
 //!
 //! Where glint materials get the pixel's footprint is [`GlintFootprints`]: by default at the
 //! first hit only and by their smooth limit after, as in the paper (Sec. 3.1). Under
-//! [`GlintFootprints::All`] paths carry their ray differentials through perfect mirrors
-//! ([`crate::differentials`]), so glints keep their footprint at any depth reached by mirror
-//! bounces alone; a glossy or diffuse bounce ends the differentials. Mirrors
+//! [`GlintFootprints::All`] paths carry their ray differentials through perfect mirrors and
+//! near-specular glossy lobes (conductors and plastic coats of α ≤
+//! [`crate::differentials::GLOSSY_FOOTPRINT_MAX_ALPHA`], widened by the lobe's spread:
+//! [`crate::differentials`]), so glints keep a footprint at any depth reached by such bounces
+//! alone; a diffuse, glint or rougher bounce ends the differentials. Mirrors
 //! ([`Material::Mirror`]) are delta reflections: no light sample there, and the emission the
 //! reflected ray finds counts unweighted, as a camera ray's does.
 
@@ -14,10 +16,12 @@ use glam::{DVec2, DVec3};
 use glint_brdf::QueryScratch;
 
 use crate::accel::PrimitiveHit;
-use crate::bounce::{Frame, mirror_differential, mirror_reflection, offset_origin};
+use crate::bounce::{
+    Frame, glossy_bounce_differential, mirror_differential, mirror_reflection, offset_origin,
+};
 use crate::camera::{RayDifferential, texture_footprint};
 use crate::light_cone::ConeVertex;
-use crate::material::{GlintCounters, Material, ShadingContext};
+use crate::material::{GlintCounters, Lobe, Material, ShadingContext};
 use crate::sampler::{PixelSampler, uniform_index};
 use crate::scene::Scene;
 use crate::settings::{
@@ -384,7 +388,8 @@ pub fn radiance(
         let u_lobe = sampler.next_1d();
         let [u0, u1] = sampler.next_2d();
         let [u2, u3] = sampler.next_2d();
-        let Some(wo) = material.sample_direction(wi, u_lobe, [u0, u1, u2, u3], surface.uv) else {
+        let Some((wo, lobe)) = material.sample_lobe(wi, u_lobe, [u0, u1, u2, u3], surface.uv)
+        else {
             break;
         };
         let direction = frame.to_world(wo);
@@ -448,7 +453,25 @@ pub fn radiance(
         }
         previous = Some((pdf, surface.point));
         previous_cones = cones;
-        differential = None;
+        // The footprint goes on through near-specular glossy lobes under `All` (see
+        // `crate::differentials`), and ends at any other bounce.
+        differential = match (differential, lobe) {
+            (Some(d), Lobe::Glossy { alpha })
+                if settings.glint_footprints == GlintFootprints::All =>
+            {
+                glossy_bounce_differential(
+                    scene,
+                    &primitive,
+                    &surface,
+                    &frame,
+                    (wi, wo),
+                    alpha,
+                    &d,
+                    ray,
+                )
+            }
+            _ => None,
+        };
         throughput *= f * (wo.z / pdf);
         if !throughput.is_finite() {
             // An overflow (or 0·∞) on the path: the sample has no meaningful value; the film

@@ -11,8 +11,9 @@
 //! - [`camera`]: a perspective camera with ray differentials (Igehy 1999) and keyframed motion;
 //!   [`camera::texture_footprint`] turns a hit's differentials into the footprint parallelogram
 //!   of Sec. 3.1 ("Usage in a rendering system").
-//! - [`differentials`]: ray differentials reflected at perfect mirrors, so glints seen in
-//!   mirrors keep their footprint under `glint_footprints = "all"`.
+//! - [`differentials`]: ray differentials reflected at perfect mirrors, and at near-specular
+//!   glossy bounces about the sampled facet and widened by the lobe's spread, so glints seen in
+//!   mirrors, polished metal and glossy coats keep a footprint under `glint_footprints = "all"`.
 //! - [`material`]: diffuse, smooth conductor, plastic, the glint material, the perfect mirror
 //!   and linear combinations; [`light`]: sphere, rectangle (optionally textured), directional and
 //!   environment lights.

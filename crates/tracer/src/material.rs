@@ -561,18 +561,39 @@ impl Material {
         u: [f64; 4],
         uv: DVec2,
     ) -> Option<DVec3> {
-        let wo = match self {
-            Self::Diffuse(_) => sample_cosine_hemisphere([u[0], u[1]]),
-            Self::Microfacet(brdf) => brdf.sample_direction(wi, [u[0], u[1]])?,
+        self.sample_lobe(wi, u_lobe, u, uv).map(|(wo, _)| wo)
+    }
+
+    /// The direction of [`Material::sample_direction`] (the same bits) with the lobe that
+    /// drew it: for a mix, the sampled component's; for plastic, the coat's or the base's.
+    /// The integrator carries pixel footprints on through [`Lobe::Glossy`] bounces
+    /// ([`crate::differentials`]).
+    #[must_use]
+    pub fn sample_lobe(
+        &self,
+        wi: DVec3,
+        u_lobe: f64,
+        u: [f64; 4],
+        uv: DVec2,
+    ) -> Option<(DVec3, Lobe)> {
+        let (wo, lobe) = match self {
+            Self::Diffuse(_) => (sample_cosine_hemisphere([u[0], u[1]]), Lobe::Diffuse),
+            Self::Microfacet(brdf) => (
+                brdf.sample_direction(wi, [u[0], u[1]])?,
+                Lobe::glossy(brdf.distribution()),
+            ),
             Self::Plastic(plastic) => {
                 let p = plastic.coat_probability(wi, uv);
                 if u_lobe < p {
-                    plastic.coat.sample_direction(wi, [u[0], u[1]])?
+                    (
+                        plastic.coat.sample_direction(wi, [u[0], u[1]])?,
+                        Lobe::glossy(plastic.coat.distribution()),
+                    )
                 } else {
-                    sample_cosine_hemisphere([u[0], u[1]])
+                    (sample_cosine_hemisphere([u[0], u[1]]), Lobe::Diffuse)
                 }
             }
-            Self::Glint(glint) => glint.brdf.sample_direction(wi, u)?,
+            Self::Glint(glint) => (glint.brdf.sample_direction(wi, u)?, Lobe::Glint),
             Self::Mix(parts) => {
                 let total: f64 = parts.iter().map(|(w, _)| *w).sum();
                 if !(total > 0.0) {
@@ -590,7 +611,7 @@ impl Material {
                     let p = w / total;
                     if u_lobe < start + p || k == last {
                         let remapped = ((u_lobe - start) / p).clamp(0.0, 1.0 - f64::EPSILON);
-                        chosen = Some(m.sample_direction(wi, remapped, u, uv)?);
+                        chosen = Some(m.sample_lobe(wi, remapped, u, uv)?);
                         break;
                     }
                     start += p;
@@ -599,7 +620,31 @@ impl Material {
             }
             Self::Mirror(_) => return None,
         };
-        above(wo).then_some(wo)
+        above(wo).then_some((wo, lobe))
+    }
+}
+
+/// The lobe a sampled direction came from (see [`Material::sample_lobe`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lobe {
+    /// Lambertian reflection (diffuse, or plastic's base).
+    Diffuse,
+    /// Reflection about a facet normal of a smooth microfacet distribution (a conductor, or
+    /// plastic's coat): the direction is the mirror reflection of ω_i about the half vector.
+    Glossy {
+        /// The distribution's larger roughness, max(α_x, α_y).
+        alpha: f64,
+    },
+    /// The glint material's sampler (a particle's normal within the cone γ).
+    Glint,
+}
+
+impl Lobe {
+    fn glossy(distribution: &glint_brdf::Microfacet) -> Self {
+        let (alpha_x, alpha_y) = distribution.alpha();
+        Self::Glossy {
+            alpha: alpha_x.max(alpha_y),
+        }
     }
 }
 
@@ -707,6 +752,45 @@ mod tests {
                 assert!(albedo.max_element() <= 1.0 + 1e-3, "{k}: albedo {albedo}");
             }
         }
+    }
+
+    /// `sample_lobe` draws `sample_direction`'s direction, bit for bit, and names the lobe
+    /// that drew it: the conductor's and the plastic coat's are glossy with their α (the coat's
+    /// direction the mirror reflection about the half vector), the plastic's base and the
+    /// mix's diffuse component diffuse, the glint material's its own.
+    #[test]
+    fn sampled_lobes_are_the_components_that_drew_the_direction() {
+        let mut rng = glint_tests::SplitMix64::new(34);
+        let wi = DVec3::new(0.4, 0.1, 0.9).normalize();
+        let uv = DVec2::new(0.3, 0.6);
+        let mut seen = vec![Vec::new(); materials().len()];
+        for (k, material) in materials().iter().enumerate() {
+            for _ in 0..2000 {
+                let (a, u) = (
+                    rng.uniform(),
+                    [rng.uniform(), rng.uniform(), rng.uniform(), rng.uniform()],
+                );
+                let direction = material.sample_direction(wi, a, u, uv);
+                let lobe = material.sample_lobe(wi, a, u, uv);
+                assert_eq!(direction, lobe.map(|(wo, _)| wo));
+                let Some((wo, lobe)) = lobe else { continue };
+                if let Lobe::Glossy { alpha } = lobe {
+                    assert_eq!(alpha, 0.2);
+                    let m = (wi + wo).normalize();
+                    let mirrored = 2.0 * wi.dot(m) * m - wi;
+                    assert!((mirrored - wo).length() < 1e-12);
+                }
+                if !seen[k].contains(&lobe) {
+                    seen[k].push(lobe);
+                }
+            }
+        }
+        let glossy = Lobe::Glossy { alpha: 0.2 };
+        assert_eq!(seen[0], [Lobe::Diffuse]);
+        assert_eq!(seen[1], [glossy]);
+        assert!(seen[2].len() == 2 && seen[2].contains(&glossy));
+        assert_eq!(seen[3], [Lobe::Glint]);
+        assert!(seen[4].len() == 2 && seen[4].contains(&Lobe::Glint));
     }
 
     #[test]

@@ -9,7 +9,12 @@
 //!
 //! The prior run here traces one camera ray per cell of a grid of at most [`PLAN_GRID`]² over
 //! the image, at the scene file's resolution and footprint scale, from the camera at its first
-//! keyframe, through perfect mirrors. At each glint hit it takes two query directions: toward
+//! keyframe, through perfect mirrors and, when the scene file sets `glint_footprints = "all"`,
+//! through near-specular glossy lobes as the render does (one direction drawn from the
+//! material's sampler; the footprint reflected about its facet and widened by the lobe's spread,
+//! [`crate::differentials`]; a diffuse or rougher lobe drawn ends the ray), so that a glint
+//! material seen mostly in polished metal or a glossy floor is planned for the footprints it
+//! has there. At each glint hit it takes two query directions: toward
 //! a light (one picked uniformly) and one drawn from the material's sampler. Eq. 11 compares
 //! geometric solid angles where the particles' density is far from uniform, so the mean
 //! footprint area is not always the best plan (on `stained_glass` a plan 4⁶ times smaller
@@ -27,17 +32,23 @@
 //!
 //! The plan selects which particle set (of the same distribution) the scene renders, so it
 //! depends only on the scene file: not on `--resolution`, `--spp`, `--frame` or
-//! `--glint-footprints`, and it is deterministic. A material with `expected_footprint_area`
+//! `--glint-footprints` (the scene file's own `glint_footprints` decides whether glossy lobes
+//! are followed: scene files under `"first_hit"` keep the plans they had before glossy
+//! footprints), and it is deterministic. A material with `expected_footprint_area`
 //! in the scene file keeps that area.
 
 use glam::{DVec2, DVec3};
 use glint_brdf::{DiscreteBrdf, Footprint, QueryScratch};
 
-use crate::bounce::{Frame, mirror_differential, mirror_reflection};
+use crate::bounce::{
+    Frame, glossy_bounce_differential, mirror_differential, mirror_reflection, offset_origin,
+};
 use crate::camera::{RayDifferential, texture_footprint};
-use crate::material::{GlintMaterial, Material};
+use crate::material::{GlintMaterial, Lobe, Material};
 use crate::sampler::{PixelSampler, uniform_index};
 use crate::scene::Scene;
+use crate::settings::GlintFootprints;
+use crate::shape::Ray;
 
 /// Camera rays per image axis of the prior run, at most (one per pixel for smaller images).
 pub const PLAN_GRID: u32 = 48;
@@ -62,8 +73,8 @@ const PLAN_MEAN_RANGE: [f64; 2] = [1.0 / (1u128 << 126) as f64, (1u64 << 40) as 
 /// count 2.4·10³–1.3·10⁵, so the bound leaves them 15 times room.
 pub const PLAN_NODE_BUDGET: u64 = 2_000_000;
 
-/// Mirror bounces the prior run follows after the camera ray, at most.
-const PLAN_MIRROR_BOUNCES: u32 = 8;
+/// Mirror and glossy bounces the prior run follows after the camera ray, at most.
+const PLAN_BOUNCES: u32 = 8;
 
 /// The seed of the prior run's samples (fixed: the plan must not vary between runs).
 const PLAN_SEED: u64 = 0x11;
@@ -95,7 +106,7 @@ impl PlanHit {
 }
 
 /// The prior run's glint hits: camera rays through a grid of pixel centres at the scene
-/// file's settings, continued through perfect mirrors.
+/// file's settings, continued through perfect mirrors (and glossy lobes under `"all"`).
 #[must_use]
 pub fn prior_run(scene: &Scene) -> Vec<PlanHit> {
     let mut hits = Vec::new();
@@ -125,14 +136,17 @@ pub fn prior_run(scene: &Scene) -> Vec<PlanHit> {
     hits
 }
 
-/// Follows one camera ray through perfect mirrors to the first other surface: a [`PlanHit`]
-/// if it has glints and a footprint.
+/// Follows one camera ray through perfect mirrors (and, under `"all"`, through glossy lobes
+/// below [`crate::differentials::GLOSSY_FOOTPRINT_MAX_ALPHA`], along a direction drawn from the
+/// material's sampler) to the first other surface: a [`PlanHit`] if it has glints and a
+/// footprint.
 fn follow(
     scene: &Scene,
     mut differential: RayDifferential,
     sampler: &mut PixelSampler,
 ) -> Option<PlanHit> {
-    for _ in 0..=PLAN_MIRROR_BOUNCES {
+    let follow_glossy = scene.settings.glint_footprints == GlintFootprints::All;
+    for _ in 0..=PLAN_BOUNCES {
         let ray = differential.ray;
         let hit = scene.intersect(&ray, f64::INFINITY)?;
         let primitive = scene.accelerator.primitives()[hit.primitive];
@@ -170,6 +184,34 @@ fn follow(
                     to_light,
                     u_sampler: [a, b, c, d],
                 });
+            }
+            other if follow_glossy => {
+                let wi = frame.to_local(-ray.direction);
+                let u_lobe = sampler.next_1d();
+                let [a, b] = sampler.next_2d();
+                let [c, d] = sampler.next_2d();
+                let (wo, lobe) = other.sample_lobe(wi, u_lobe, [a, b, c, d], surface.uv)?;
+                let Lobe::Glossy { alpha } = lobe else {
+                    return None;
+                };
+                let direction = frame.to_world(wo);
+                if direction.dot(geometric_normal) <= 0.0 {
+                    return None;
+                }
+                let reflected = Ray {
+                    origin: offset_origin(surface.point, geometric_normal, direction),
+                    direction,
+                };
+                differential = glossy_bounce_differential(
+                    scene,
+                    &primitive,
+                    &surface,
+                    &frame,
+                    (wi, wo),
+                    alpha,
+                    &differential,
+                    reflected,
+                )?;
             }
             _ => return None,
         }
@@ -350,9 +392,15 @@ mod tests {
     /// `camera` (a `[camera]` section's body); `floor` goes into the floor's material and
     /// `more` after the floor's shape.
     fn glint_floor_scene(camera: &str, floor: &str, more: &str) -> Scene {
+        glint_floor_scene_rendered("", camera, floor, more)
+    }
+
+    /// [`glint_floor_scene`] with `render` added to the `[render]` section.
+    fn glint_floor_scene_rendered(render: &str, camera: &str, floor: &str, more: &str) -> Scene {
         let text = format!(
             r#"
             [render]
+            {render}
             resolution = [32, 32]
             spp = 1
             integrator = "path"
@@ -483,33 +531,86 @@ mod tests {
         assert!(!glint(&fixed).plan_footprint_area);
     }
 
+    /// A glint floor seen only in a 45° panel of material `panel` (a material section's
+    /// body), with `render` in the `[render]` section.
+    fn panel_scene(render: &str, panel: &str) -> Scene {
+        let camera = "position = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nfov = 10";
+        let mirror = format!(
+            r#"
+            [materials.panel]
+            {panel}
+
+            [[shapes]]
+            type = "rectangle"
+            center = [0.0, 1.0, 0.0]
+            u = [2.0, 0.0, 0.0]
+            v = [0.0, 1.4142, 1.4142]
+            material = "panel"
+            "#
+        );
+        glint_floor_scene_rendered(render, camera, "", &mirror)
+    }
+
     /// The prior run follows perfect mirrors: a glint floor seen only in a 45° mirror gets
     /// every camera ray's footprint; with a diffuse panel in the mirror's place, none.
     #[test]
     fn the_prior_run_sees_glints_through_mirrors() {
-        let scene = |panel: &str| {
-            let camera = "position = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nfov = 10";
-            let mirror = format!(
-                r#"
-                [materials.panel]
-                {panel}
-
-                [[shapes]]
-                type = "rectangle"
-                center = [0.0, 1.0, 0.0]
-                u = [2.0, 0.0, 0.0]
-                v = [0.0, 1.4142, 1.4142]
-                material = "panel"
-                "#
-            );
-            glint_floor_scene(camera, "", &mirror)
-        };
-        let mirrored = scene(r#"type = "mirror""#);
+        let mirrored = panel_scene("", r#"type = "mirror""#);
         let hits = prior_run(&mirrored);
         assert_eq!(hits.len(), 32 * 32);
         assert!(hits.iter().all(|h| h.material == 0));
-        let diffuse = scene(r#"type = "diffuse""#);
+        let diffuse = panel_scene("", r#"type = "diffuse""#);
         assert!(prior_run(&diffuse).is_empty());
+    }
+
+    /// Under `glint_footprints = "all"` the prior run follows glossy lobes as the render does:
+    /// a conductor panel of α = 10⁻⁴ gives every camera ray the mirror's footprint (the mean
+    /// area within 1%, the plan the same); a plastic coat of that α gives the coat's share of
+    /// them; a rough conductor (α = 0.3, past the limit) none. Under `"first_hit"` glossy
+    /// panels end every ray, as before.
+    #[test]
+    fn the_prior_run_follows_glossy_lobes_under_all() {
+        let all = r#"glint_footprints = "all""#;
+        let conductor = |alpha: f64| {
+            format!(
+                "type = \"conductor\"\nalpha = {alpha}\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.4, 2.2]"
+            )
+        };
+        let mirror = panel_scene(all, r#"type = "mirror""#);
+        let g = glint(&mirror);
+        let mirror_hits = prior_run(&mirror);
+        let area = |hits: &[PlanHit]| {
+            let hits: Vec<&PlanHit> = hits.iter().collect();
+            let logs: Vec<f64> = hits
+                .iter()
+                .map(|h| h.footprint(g.uv_scale).unwrap().area().ln())
+                .collect();
+            (logs.iter().sum::<f64>() / logs.len() as f64).exp()
+        };
+        let polished = panel_scene(all, &conductor(1e-4));
+        let hits = prior_run(&polished);
+        assert_eq!(hits.len(), 32 * 32);
+        let ratio = area(&hits) / area(&mirror_hits);
+        assert!((ratio - 1.0).abs() < 0.01, "area ratio {ratio}");
+        assert_eq!(
+            glint(&polished).brdf.parameters(),
+            glint(&mirror).brdf.parameters()
+        );
+        // Rougher, within the limit: wider footprints.
+        let satin = prior_run(&panel_scene(all, &conductor(0.02)));
+        assert!(!satin.is_empty());
+        assert!(area(&satin) > 10.0 * area(&mirror_hits));
+        let coat = prior_run(&panel_scene(
+            all,
+            "type = \"plastic\"\nalpha = 1e-4\ncolour = 0.5",
+        ));
+        assert!(
+            !coat.is_empty() && coat.len() < 32 * 32,
+            "{} of the camera rays reach the floor through the coat",
+            coat.len()
+        );
+        assert!(prior_run(&panel_scene(all, &conductor(0.3))).is_empty());
+        assert!(prior_run(&panel_scene("", &conductor(1e-4))).is_empty());
     }
 
     /// Footprints far below any node's area (10⁻³⁰⁰ of the texture) still plan a valid area,

@@ -30,9 +30,11 @@ pub enum GlintFootprints {
     /// At the first hit seen from the camera; the smooth limit after (the paper's choice).
     #[default]
     FirstHit,
-    /// Wherever the path from the camera has met only perfect mirrors: ray differentials are
-    /// reflected at each mirror ([`crate::differentials`]). Renders as `FirstHit` in scenes
-    /// without mirrors.
+    /// Wherever the path from the camera has met only perfect mirrors and near-specular glossy
+    /// lobes: ray differentials are reflected at each mirror, and at each glossy bounce about
+    /// the sampled facet normal and widened by the lobe's spread ([`crate::differentials`]).
+    /// Renders as `FirstHit` in scenes without mirrors and without conductors or plastics of
+    /// α ≤ [`crate::differentials::GLOSSY_FOOTPRINT_MAX_ALPHA`].
     All,
     /// Nowhere: every glint material evaluates its smooth limit (with its glint sampler).
     Never,
