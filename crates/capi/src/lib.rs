@@ -301,17 +301,19 @@ pub unsafe extern "C" fn glint_sample(
             )));
         }
         let brdf = &material.brdf;
-        // The direction and pdf are the sampler's either way; the weights differ by f.
+        // One direction and pdf, the sampler's; the weights differ by f (f̂ at the footprint).
         let drawn = brdf.sample_direction(wi, u).and_then(|wo| {
             BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
         });
-        let with_footprint = match at_footprint {
-            Some((scratch, footprint)) => {
-                let footprint = footprint_from(footprint)?;
-                Some(scratch.bind(brdf, &footprint, |bxdf| bxdf.sample(wi, u)))
-            }
-            None => None,
-        };
+        let footprint = at_footprint
+            .map(|(scratch, footprint)| Ok::<_, Failure>((scratch, footprint_from(footprint)?)))
+            .transpose()?;
+        let with_footprint = footprint.map(|(scratch, footprint)| {
+            drawn.and_then(|smooth| {
+                let f_hat = scratch.bind(brdf, &footprint, |bxdf| bxdf.eval(wi, smooth.wo));
+                BxdfSample::weighted(smooth.wo, f_hat, smooth.pdf)
+            })
+        });
         let answer = match drawn {
             None => GlintSample {
                 wo: [0.0; 3],
