@@ -471,3 +471,35 @@ pub fn skipped_query_particles(
     }
     out
 }
+
+/// The answers to `footprints` against `conic`, queried in `threads` threads, each with a
+/// scratch of its own, in input order.
+///
+/// # Panics
+/// If a thread panics.
+#[must_use]
+pub fn queries_in_threads(
+    tree: &CountTree,
+    conic: &SphericalConic,
+    footprints: &[Footprint],
+    threads: usize,
+) -> Vec<glint_tree::QueryResult> {
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = footprints
+            .chunks(footprints.len().div_ceil(threads.max(1)).max(1))
+            .map(|chunk| {
+                scope.spawn(move || {
+                    let mut scratch = QueryScratch::new();
+                    chunk
+                        .iter()
+                        .map(|f| tree.query(f, conic, &mut scratch))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("a query thread panicked"))
+            .collect()
+    })
+}

@@ -9,7 +9,7 @@ use glint_tests::SplitMix64;
 use glint_tests::counts::{
     beckmann_tree, conic_integral_by_sampling, correlation, count_moment_errors,
     counts_over_footprints, equal_split_chi_square, mean_and_variance, multinomial_chi_square,
-    overlapping_pair_counts,
+    overlapping_pair_counts, queries_in_threads,
 };
 use glint_tests::geometry::direction;
 use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
@@ -45,26 +45,7 @@ fn same_query_is_bit_identical_in_any_thread_and_order() {
         .rev()
         .map(|f| tree.query(f, &conic, &mut scratch))
         .collect();
-    let threaded: Vec<_> = std::thread::scope(|scope| {
-        let handles: Vec<_> = footprints
-            .chunks(50)
-            .map(|chunk| {
-                let tree = &tree;
-                let conic = &conic;
-                scope.spawn(move || {
-                    let mut scratch = QueryScratch::new();
-                    chunk
-                        .iter()
-                        .map(|f| tree.query(f, conic, &mut scratch))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    });
+    let threaded = queries_in_threads(&tree, &conic, &footprints, 4);
     for (i, result) in forward.iter().enumerate() {
         assert_eq!(
             result.count.to_bits(),

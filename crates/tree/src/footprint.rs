@@ -304,6 +304,11 @@ impl Footprint {
         first..=last
     }
 
+    /// The four corners, in order around the parallelogram (about the centre in [0, 1)²).
+    pub(crate) fn corners(&self) -> [DVec2; 4] {
+        self.corners
+    }
+
     /// The footprint's axis-aligned bounding box, (min, max) (its centre in [0, 1)²).
     #[inline]
     pub(crate) fn bounds(&self) -> (DVec2, DVec2) {

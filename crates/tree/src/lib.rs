@@ -8,6 +8,8 @@
 //!
 //! - [`CountTree`]: a material's implicit 4D position–normal hierarchy and its breadth-first
 //!   query ([`CountTree::query`]) with the error criterion of Eq. 10.
+//! - [`DensityMap`]: a piecewise-constant density d(x) over the square: N·d(x) particles per
+//!   unit area, masks where d = 0, exact counts ([`CountTree::with_density_map`]).
 //! - [`Footprint`]: the texture-space parallelogram of a pixel, wrapping across tiles.
 //! - [`NdfQuadrature`]: Alg. 2's memoized integrals of the normal density.
 //! - [`sampling`]: exact binomial and multinomial splits, the paper's normal approximation,
@@ -38,6 +40,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod density_map;
 mod error;
 pub mod footprint;
 pub mod ndf;
@@ -46,6 +49,7 @@ pub mod sampling;
 pub mod tea;
 mod tree;
 
+pub use density_map::{DensityMap, DensityMapError};
 pub use error::TreeError;
 pub use footprint::{BoxOverlap, Footprint};
 pub use ndf::{DirectionalCell, NdfQuadrature, NormalDensity, QuadratureTolerance};

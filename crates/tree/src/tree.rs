@@ -17,6 +17,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use glint_sphere::OverlapMethod;
 
+use crate::density_map::DensityMap;
 use crate::error::TreeError;
 use crate::footprint::Footprint;
 use crate::ndf::{DirectionalSplits, NdfQuadrature, NormalDensity, QuadratureTolerance};
@@ -167,6 +168,13 @@ pub fn expected_conic_solid_angle(gamma: f64) -> f64 {
     std::f64::consts::PI * (0.5 * gamma).sin().powi(2)
 }
 
+/// The root's particles: N, or round(N·∫d) under a density map (N exactly for a map of ones).
+fn root_particles(particles: u64, density_map: Option<&DensityMap>) -> u64 {
+    density_map.map_or(particles, |map| {
+        ((particles as f64 * map.mean()).round() as u64).min(particles)
+    })
+}
+
 /// A tree identity no other tree has had (clones share theirs): the key of its memo entries.
 fn fresh_id() -> u64 {
     static NEXT_ID: AtomicU64 = AtomicU64::new(1);
@@ -185,6 +193,10 @@ pub struct CountTree {
     /// `directional_splits` as single leaf particles' descents walk them.
     descent_steps: Vec<DescentStep>,
     top_levels: TopLevels,
+    /// The particle density over the square, N·d(x) (`None`: uniform, d = 1).
+    density_map: Option<Arc<DensityMap>>,
+    /// The root's particles: N, or round(N·∫d) under a density map.
+    root_particles: u64,
 }
 
 /// The children of every node above depth [`CountTreeConfig::cached_levels`], computed once:
@@ -232,6 +244,22 @@ impl CountTree {
     /// # Errors
     /// A [`TreeError`] naming the invalid parameter.
     pub fn new(config: CountTreeConfig, density: Arc<NormalDensity>) -> Result<Self, TreeError> {
+        Self::with_density_map(config, density, None)
+    }
+
+    /// [`CountTree::new`] with particles placed by a density map: the particle density at
+    /// texture position x is N·d(x), the root holds round(N·∫d) particles, and a spatial split
+    /// gives each quarter of a box the share of the box's mass it holds (see
+    /// [`crate::density_map`]). Where the map is constant over a box the tree splits as it
+    /// does without one, so a map of ones gives [`CountTree::new`]'s particles bit for bit.
+    ///
+    /// # Errors
+    /// As [`CountTree::new`].
+    pub fn with_density_map(
+        config: CountTreeConfig,
+        density: Arc<NormalDensity>,
+        density_map: Option<Arc<DensityMap>>,
+    ) -> Result<Self, TreeError> {
         if !(1..=MAX_PARTICLES).contains(&config.particles) {
             return Err(TreeError::ParticleCountOutOfRange {
                 particles: config.particles,
@@ -270,6 +298,8 @@ impl CountTree {
             directional_splits,
             descent_steps: Vec::new(),
             top_levels: TopLevels::default(),
+            root_particles: root_particles(config.particles, density_map.as_deref()),
+            density_map,
         };
         tree.descent_steps = tree.descent_steps();
         tree.top_levels = tree.build_top_levels();
@@ -299,6 +329,8 @@ impl CountTree {
             directional_splits: self.directional_splits.clone(),
             descent_steps: self.descent_steps.clone(),
             top_levels: TopLevels::default(),
+            density_map: self.density_map.clone(),
+            root_particles: self.root_particles,
         };
         tree.top_levels = tree.build_top_levels();
         Ok(tree)
@@ -330,6 +362,12 @@ impl CountTree {
     #[must_use]
     pub fn config(&self) -> &CountTreeConfig {
         &self.config
+    }
+
+    /// The density map particles are placed by, if any.
+    #[must_use]
+    pub fn density_map(&self) -> Option<&DensityMap> {
+        self.density_map.as_deref()
     }
 
     /// The memo table of Alg. 2.

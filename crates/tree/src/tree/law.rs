@@ -1,5 +1,5 @@
 //! The law the particle set follows, and the expectations it gives: [`CountTree::expected_count`],
-//! N·A·∫p over the conic by the tree's own quadrature (Alg. 2's table, the one-point rule
+//! N·A·∫p over the conic (N·∫_A d·∫p under a density map) by the tree's own quadrature (Alg. 2's table, the one-point rule
 //! elsewhere), which is what a count converges to and the scale of Eq. 10 in long queries; and
 //! [`CountTree::directional_law_excess`], how far the directional law of leaf particles (the
 //! split probabilities down to the final cells) exceeds a bound on p, which Alg. 2's δ_abs
@@ -83,6 +83,7 @@ impl CountTree {
 
     /// N·area(A)·∫_{Ω_h} p(m) dm: the expected count of a query, with ∫p over the conic by the
     /// tree's own quadrature (table entries, one-point rule and overlap fractions elsewhere).
+    /// Under a density map, area(A) is ∫_A d ([`crate::DensityMap::mass_in`]).
     #[must_use]
     pub fn expected_count(
         &self,
@@ -111,8 +112,11 @@ impl CountTree {
             cells,
             None,
         );
-        self.config.particles as f64 * footprint.area() * integral
-            / self.quadrature.hemisphere_integral()
+        let area = match self.density_map.as_deref() {
+            Some(map) => map.mass_in(footprint),
+            None => footprint.area(),
+        };
+        self.config.particles as f64 * area * integral / self.quadrature.hemisphere_integral()
     }
 
     /// ∫ p over cell ∩ conic: descend the cells that have table entries; elsewhere take the

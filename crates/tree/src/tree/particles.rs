@@ -103,13 +103,14 @@ impl CountTree {
     pub(super) fn root(&self) -> Node {
         Node {
             id: NodeId::ROOT,
-            count: self.config.particles,
+            count: self.root_particles,
             box_min: DVec2::ZERO,
             box_level: 0,
             cell: DirectionalCell::HEMISPHERE,
             solid_angle: DirectionalCell::HEMISPHERE.solid_angle(),
             depth: 0,
-            areas: [1.0; 3],
+            // The share of N's particle area the root holds (1 without a density map).
+            areas: [self.root_particles as f64 / self.config.particles as f64; 3],
         }
     }
 }

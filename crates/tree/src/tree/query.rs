@@ -4,7 +4,8 @@
 //! Breadth first, from the root: a node disjoint from the query in space or direction, or
 //! empty, is dropped; a node inside it (multiplicity constant over the box, triangle inside the
 //! conic) adds its count; a partial node on which p is near-uniform stops early when
-//! √(n·q(1−q)) < ε·count (Eq. 10), adding n·q with q its overlap fraction; a leaf counts its
+//! √(n·q(1−q)) < ε·count (Eq. 10), adding n·q with q its overlap fraction (not where a
+//! density map varies over a box the footprint cuts: q is not known there); a leaf counts its
 //! particles one by one; any other node splits. ε = 0 is exact: the count is then a sum of whole
 //! particles, the count in a fixed region is Binomial(N, ·), and counts are additive over
 //! disjoint footprints.
@@ -212,7 +213,15 @@ impl CountTree {
                 let cheap = || directions_inside || !self.quadrature.has_entry(&node.cell);
                 let descend =
                     scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
-                if threshold > 0.0 && (descend || cheap()) {
+                // Under a density map that varies over a box the footprint cuts, the node's
+                // particles are not uniform over the box: its share is not the overlap's area
+                // fraction, so it is split on rather than estimated.
+                let uniform_in_box = spatial.partial == 0
+                    || self
+                        .density_map
+                        .as_deref()
+                        .is_none_or(|map| map.is_constant_over(node.box_min, node.box_size()));
+                if threshold > 0.0 && uniform_in_box && (descend || cheap()) {
                     let share = expected_share(memo, cells);
                     if share.deviation(node.count) < threshold {
                         count += node.count as f64 * share.mean;

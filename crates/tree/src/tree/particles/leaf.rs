@@ -1,6 +1,7 @@
 //! A leaf's particles (Sec. 3.4): a node with at most [`LEAF_PARTICLES`] particles, or at the
 //! depth guard, places them explicitly, each from its own stream: in a sub-box of the leaf's
-//! box picked by four bits of the leaf's stream, uniformly within it, with area shares per
+//! box picked by four bits of the leaf's stream, uniformly within it (or, under a density map
+//! that varies over the box, by the map's inverse distribution there), with area shares per
 //! colour channel, and a normal by the descent of `super::descent`. A leaf is counted against
 //! the query here, drawing only what the footprint needs: positions for the sub-boxes that may
 //! meet it, normals and area shares for the particles inside it. Which draw defines what is
@@ -11,6 +12,7 @@ use glint_sphere::{Classification, SphericalConic};
 
 use super::descent::{LEAF_CELL_ARC, NormalDescent, members};
 use super::{Node, PURPOSE_LEAF, PURPOSE_LEAF_SUB_BOXES};
+use crate::density_map::DensityMap;
 use crate::footprint::Footprint;
 use crate::sampling::exponential;
 use crate::tea::{TeaRng, draws_x4, unit_f64, unit_pair};
@@ -93,6 +95,7 @@ impl LeafDraws {
 
     /// The codes of the next `particles` (at most [`Self::CAPACITY`]) particles from the
     /// leaf's sub-box stream, no position drawn.
+    #[cfg(test)]
     fn with_codes(sub_boxes: &mut TeaRng, particles: usize) -> Self {
         let mut draws = Self::EMPTY;
         draws.start_over(sub_boxes, particles);
@@ -120,6 +123,25 @@ impl LeafDraws {
             *code = sub_boxes.next_bits();
         }
         self.drawn = 0;
+        self.descended = 0;
+        self.met_again = false;
+    }
+
+    /// Forgets what was drawn and takes the given positions of a leaf's next particles (at
+    /// most [`Self::CAPACITY`]), placed by a density map: all drawn, their sub-box codes (of
+    /// the box at `box_min`, sub-boxes of side `sub_size`) read from them.
+    fn start_over_placed(&mut self, positions: &[DVec2], box_min: DVec2, sub_size: f64) {
+        debug_assert!(positions.len() <= Self::CAPACITY);
+        self.codes = [0; 2];
+        let last = LEAF_SUB_BOXES_PER_SIDE - 1;
+        for (i, &position) in positions.iter().enumerate() {
+            let cell = ((position - box_min) / sub_size).floor().max(DVec2::ZERO);
+            let (column, row) = ((cell.x as usize).min(last), (cell.y as usize).min(last));
+            let code = (column + LEAF_SUB_BOXES_PER_SIDE * row) as u64;
+            self.codes[i / 16] |= code << (4 * (i % 16));
+            self.positions[i] = position;
+        }
+        self.drawn = u32::try_from((1u64 << positions.len()) - 1).unwrap_or(u32::MAX);
         self.descended = 0;
         self.met_again = false;
     }
@@ -178,6 +200,32 @@ fn compress_nibble_flags(flags: u64) -> u32 {
 }
 
 impl CountTree {
+    /// The positions of a leaf's particles `first`, …, `first + particles − 1` (at most
+    /// [`LeafDraws::CAPACITY`]) under a density map that varies over its box: draw 0 of each
+    /// particle's stream, the two uniform numbers that place it uniformly without a map,
+    /// through the inverse of the map's distribution over the box ([`DensityMap::place`]).
+    fn positions_by_map(
+        &self,
+        map: &DensityMap,
+        node: &Node,
+        first: u64,
+        particles: usize,
+    ) -> [DVec2; LeafDraws::CAPACITY] {
+        let key = node.id.key(self.config.seed);
+        let mut positions = [DVec2::ZERO; LeafDraws::CAPACITY];
+        for start in (0..particles).step_by(4) {
+            let purposes = std::array::from_fn(|k| {
+                let i = (start + k).min(particles - 1);
+                PURPOSE_LEAF + (first as usize + i) as u32
+            });
+            let draws = draws_x4(key, purposes, 0, self.config.tea_rounds);
+            for (k, draw) in draws.into_iter().enumerate().take(particles - start) {
+                positions[start + k] = map.place(node.box_min, node.box_size(), unit_pair(draw));
+            }
+        }
+        positions
+    }
+
     /// Counts a leaf's particles (positions one by one, normals by [`Self::normals_in_conic`]);
     /// returns (count, area sums). `directional` is the
     /// conic's classification of the leaf's cell; `in_footprint` is reused working memory.
@@ -228,17 +276,29 @@ impl CountTree {
         // its neighbours', meet the same leaves. Larger leaves (only at the depth guard) draw
         // them afresh.
         let mut sub_boxes = self.stream(node.id, PURPOSE_LEAF_SUB_BOXES);
+        let map = self
+            .density_map
+            .as_deref()
+            .filter(|map| !map.is_constant_over(node.box_min, box_size));
         let mut unremembered;
         let remembered = node.count <= LeafDraws::CAPACITY as u64;
         let mut met_again = false;
         for first in (0..node.count).step_by(LeafDraws::CAPACITY) {
             let particles = (node.count - first).min(LeafDraws::CAPACITY as u64) as usize;
+            // Under a density map that varies over the box, every position is drawn at once
+            // (by the map) and the sub-box codes are read from them.
+            let mut placed = |draws: &mut LeafDraws| match map {
+                Some(map) => {
+                    let positions = self.positions_by_map(map, node, first, particles);
+                    draws.start_over_placed(&positions[..particles], node.box_min, sub_size);
+                }
+                None => draws.start_over(&mut sub_boxes, particles),
+            };
             let leaf = if remembered {
-                memo.leaf_draws(self, node, |draws| {
-                    draws.start_over(&mut sub_boxes, particles);
-                })
+                memo.leaf_draws(self, node, placed)
             } else {
-                unremembered = LeafDraws::with_codes(&mut sub_boxes, particles);
+                unremembered = LeafDraws::EMPTY;
+                placed(&mut unremembered);
                 &mut unremembered
             };
             met_again = leaf.met_again;

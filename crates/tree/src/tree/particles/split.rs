@@ -2,8 +2,9 @@
 //! triangles from material constants only, and the children's counts are a multinomial draw
 //! from the node's own streams: one stream, or for exact splits of many particles three (the
 //! pairs' totals, then each pair's division), so that a query may leave a pair undivided.
-//! Directional splits take the probabilities of Alg. 2's integrals of p over the children.
-//! Value-stable: see `super`.
+//! Directional splits take the probabilities of Alg. 2's integrals of p over the children;
+//! spatial splits take ¼ each, or under a density map that varies over the box, the quarters'
+//! shares of its mass. Value-stable: see `super`.
 
 use std::borrow::Cow;
 
@@ -141,10 +142,16 @@ impl CountTree {
         split: Option<&DirectionalSplit>,
     ) -> PairCounts {
         let mode = self.config.multinomial;
-        let probabilities = split.map_or([0.25; 4], |split| split.probabilities);
-        if !splits_by_pairs(node.count, split.is_none(), mode) {
+        // Unequal children: a directional split's, or a spatial split's where the density map
+        // varies over the box (`None` where it is constant: four equal quarters).
+        let unequal = match split {
+            Some(split) => Some(split.probabilities),
+            None => self.spatial_split_probabilities(node),
+        };
+        let probabilities = unequal.unwrap_or([0.25; 4]);
+        if !splits_by_pairs(node.count, unequal.is_none(), mode) {
             let mut rng = self.stream(node.id, PURPOSE_SPLIT);
-            let counts = match split {
+            let counts = match unequal {
                 None => multinomial4_equal(node.count, mode, &mut rng),
                 Some(_) => multinomial4(node.count, probabilities, mode, &mut rng),
             };
@@ -171,6 +178,15 @@ impl CountTree {
             key,
             rounds,
         }
+    }
+
+    /// The probabilities of a spatial split of `node`'s box: its quarters' shares of the
+    /// density map's mass over it, or `None` (¼ each) where the map is constant over the box or
+    /// there is no map.
+    fn spatial_split_probabilities(&self, node: &Node) -> Option<[f64; 4]> {
+        self.density_map
+            .as_deref()
+            .and_then(|map| map.quarter_probabilities(node.box_min, node.box_size()))
     }
 
     /// Child `j` of `node` under `split` (its directional split, `None` for a spatial one)

@@ -1,0 +1,731 @@
+//! A density map d(x) ∈ [0, 1] over the particles' unit square: the particle density at
+//! texture position x is N·d(x). It is piecewise constant over W × H texels and tiles with the
+//! square. The count tree reads it in three places, each exact for a piecewise-constant map:
+//!
+//! - **Spatial splits** ([`DensityMap::quarter_probabilities`]): the four quarters of a box take
+//!   probabilities proportional to their mass ∫d, as directional splits take the integrals of p
+//!   over the child triangles. Where the map is constant over a box
+//!   ([`DensityMap::is_constant_over`]) there is nothing to weigh and the tree splits exactly as
+//!   it does without a map.
+//! - **Leaves** ([`DensityMap::place`]): a particle's position is the inverse of the map's
+//!   distribution function within the leaf's box (column by the marginal, then row within it),
+//!   from the same two uniform numbers that place it uniformly without a map. Texels where
+//!   d = 0 never receive a particle.
+//! - **Expectations** ([`DensityMap::mass_in`]): ∫_A d over a footprint, for the expected count
+//!   N·∫_A d·∫p.
+//!
+//! Masses are exact sums of integers: texel values are stored in fixed point (multiples of
+//! 2⁻³², so d = 0 is exactly 0 and a box of zero texels has mass exactly 0), in summed-area
+//! tables of u64, combined with the box's partial texel weights in one final floating-point
+//! step. Whether a box is constant is a count of value changes between neighbouring texels
+//! inside it, from two more summed-area tables: O(1) per box.
+//!
+//! Memory: 24 bytes per texel (the map's own values, its table and the change tables), at most
+//! [`DensityMap::MAX_TEXELS`] texels.
+
+use std::fmt;
+
+use glam::DVec2;
+
+use crate::footprint::Footprint;
+
+/// Fixed-point scale of stored values: d is held as round(d·2³²).
+const FIXED_ONE: f64 = 4_294_967_296.0;
+
+/// Footprints whose bounding box covers more texels than this get their mass from the
+/// map's mean (as the tree averages footprints over many tiles): integrating them texel by
+/// texel would cost more than the query.
+const MAX_INTEGRATED_TEXELS: f64 = 65_536.0;
+
+/// Why a density map was refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DensityMapError {
+    /// Width and height must be at least 1, with at most [`DensityMap::MAX_TEXELS`] texels.
+    InvalidSize {
+        /// The width given.
+        width: usize,
+        /// The height given.
+        height: usize,
+    },
+    /// The values must be width × height, row by row.
+    WrongLength {
+        /// width × height.
+        expected: usize,
+        /// The number of values given.
+        given: usize,
+    },
+    /// A texel's value is not in [0, 1].
+    InvalidTexel {
+        /// Its column (0 at u = 0).
+        column: usize,
+        /// Its row (0 at the top of the texture, v near 1).
+        row: usize,
+        /// The value.
+        value: f64,
+    },
+    /// Every texel is 0: the material would have no particle at all.
+    Empty,
+}
+
+impl fmt::Display for DensityMapError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidSize { width, height } => write!(
+                f,
+                "a {width} x {height} map is invalid: it needs at least one texel and at most {} texels",
+                DensityMap::MAX_TEXELS
+            ),
+            Self::WrongLength { expected, given } => {
+                write!(f, "the map has {given} values for {expected} texels")
+            }
+            Self::InvalidTexel { column, row, value } => write!(
+                f,
+                "texel (column {column}, row {row}) is {value}: densities must be in [0, 1]"
+            ),
+            Self::Empty => write!(f, "every texel is 0: the material would hold no particle"),
+        }
+    }
+}
+
+impl std::error::Error for DensityMapError {}
+
+/// A piecewise-constant density d(x) ∈ [0, 1] over the unit square (see the module docs).
+#[derive(Clone, PartialEq)]
+pub struct DensityMap {
+    width: usize,
+    height: usize,
+    /// Texel values in fixed point, row j covering v ∈ [j/H, (j + 1)/H) (row 0 at v = 0).
+    fixed: Vec<u64>,
+    /// `sat[j·(W + 1) + i]`: the sum of `fixed` over rows < j and columns < i.
+    sat: Vec<u64>,
+    /// Summed-area table of [value of (j, i) ≠ value of (j, i + 1)], i < W − 1 (stride W).
+    column_changes: Vec<u32>,
+    /// Summed-area table of [value of (j, i) ≠ value of (j + 1, i)], j < H − 1 (stride W + 1).
+    row_changes: Vec<u32>,
+    /// The value when every texel has it.
+    uniform: Option<f64>,
+    /// ∫d over the unit square.
+    mean: f64,
+}
+
+impl fmt::Debug for DensityMap {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("DensityMap")
+            .field("width", &self.width)
+            .field("height", &self.height)
+            .field("mean", &self.mean)
+            .field("uniform", &self.uniform)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Texels [first, last] along one axis of `n` that [lo, hi] covers with positive length,
+/// with the fraction of each end texel covered (1 for interior ones).
+#[derive(Clone, Copy, Debug)]
+struct TexelSpan {
+    first: usize,
+    last: usize,
+    first_weight: f64,
+    last_weight: f64,
+}
+
+impl TexelSpan {
+    fn new(lo: f64, hi: f64, n: usize) -> Self {
+        let scale = n as f64;
+        let (lo, hi) = (lo * scale, hi * scale);
+        let first = (lo.floor().max(0.0) as usize).min(n - 1);
+        let last = ((hi.ceil() - 1.0).max(0.0) as usize).clamp(first, n - 1);
+        let (first_weight, last_weight) = if first == last {
+            ((hi - lo).clamp(0.0, 1.0), (hi - lo).clamp(0.0, 1.0))
+        } else {
+            (
+                ((first + 1) as f64 - lo).clamp(0.0, 1.0),
+                (hi - last as f64).clamp(0.0, 1.0),
+            )
+        };
+        Self {
+            first,
+            last,
+            first_weight,
+            last_weight,
+        }
+    }
+
+    /// The fraction of texel k covered (k in [first, last]).
+    fn weight(&self, k: usize) -> f64 {
+        if k == self.first {
+            self.first_weight
+        } else if k == self.last {
+            self.last_weight
+        } else {
+            1.0
+        }
+    }
+
+    /// The span as up to three groups (first, interior, last) of texels [a, b) and weights.
+    fn groups(&self) -> impl Iterator<Item = (usize, usize, f64)> {
+        let single = self.first == self.last;
+        let interior = self.first + 1 < self.last;
+        [
+            Some((self.first, self.first + 1, self.first_weight)),
+            interior.then_some((self.first + 1, self.last, 1.0)),
+            (!single).then_some((self.last, self.last + 1, self.last_weight)),
+        ]
+        .into_iter()
+        .flatten()
+    }
+}
+
+impl DensityMap {
+    /// The largest map: 2²⁴ texels (4096 × 4096), 400 MB of tables.
+    pub const MAX_TEXELS: usize = 1 << 24;
+
+    /// A map of `width` × `height` texels from `values` given row by row, **row 0 at the top of
+    /// the texture** (v from 1 − 1/H to 1), column 0 starting at u = 0: the order of an image.
+    ///
+    /// # Errors
+    /// A [`DensityMapError`] naming the size, or the first texel not in [0, 1]; a map of zeros.
+    pub fn new(width: usize, height: usize, values: &[f64]) -> Result<Self, DensityMapError> {
+        let texels = width.saturating_mul(height);
+        if width == 0 || height == 0 || texels > Self::MAX_TEXELS {
+            return Err(DensityMapError::InvalidSize { width, height });
+        }
+        if values.len() != texels {
+            return Err(DensityMapError::WrongLength {
+                expected: texels,
+                given: values.len(),
+            });
+        }
+        let mut fixed = vec![0u64; texels];
+        for (k, &value) in values.iter().enumerate() {
+            let (row, column) = (k / width, k % width);
+            if !(0.0..=1.0).contains(&value) {
+                return Err(DensityMapError::InvalidTexel { column, row, value });
+            }
+            let j = height - 1 - row;
+            fixed[j * width + column] = (value * FIXED_ONE).round() as u64;
+        }
+        let stride = width + 1;
+        let mut sat = vec![0u64; (height + 1) * stride];
+        for j in 0..height {
+            let mut row_sum = 0u64;
+            for i in 0..width {
+                row_sum += fixed[j * width + i];
+                sat[(j + 1) * stride + i + 1] = sat[j * stride + i + 1] + row_sum;
+            }
+        }
+        let changes = |changed: &dyn Fn(usize, usize) -> bool, columns: usize, rows: usize| {
+            let stride = columns + 1;
+            let mut table = vec![0u32; (rows + 1) * stride];
+            for j in 0..rows {
+                let mut row_sum = 0u32;
+                for i in 0..columns {
+                    row_sum += u32::from(changed(j, i));
+                    table[(j + 1) * stride + i + 1] = table[j * stride + i + 1] + row_sum;
+                }
+            }
+            table
+        };
+        let at = |j: usize, i: usize| fixed[j * width + i];
+        let column_changes = changes(&|j, i| at(j, i) != at(j, i + 1), width - 1, height);
+        let row_changes = changes(&|j, i| at(j, i) != at(j + 1, i), width, height - 1);
+        let total = sat[height * stride + width];
+        if total == 0 {
+            return Err(DensityMapError::Empty);
+        }
+        let uniform = fixed
+            .iter()
+            .all(|&q| q == fixed[0])
+            .then(|| fixed[0] as f64 / FIXED_ONE);
+        let mean = total as f64 / (FIXED_ONE * texels as f64);
+        Ok(Self {
+            width,
+            height,
+            fixed,
+            sat,
+            column_changes,
+            row_changes,
+            uniform,
+            mean,
+        })
+    }
+
+    /// Width and height in texels.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// ∫d over the unit square: a tile holds N times this many particles on average.
+    #[must_use]
+    pub fn mean(&self) -> f64 {
+        self.mean
+    }
+
+    /// The value of every texel, when they are all equal (as stored: a multiple of 2⁻³²).
+    #[must_use]
+    pub fn uniform_value(&self) -> Option<f64> {
+        self.uniform
+    }
+
+    /// The largest value (as stored).
+    #[must_use]
+    pub fn max(&self) -> f64 {
+        self.fixed.iter().copied().max().unwrap_or(0) as f64 / FIXED_ONE
+    }
+
+    /// d at texture point `x`, wrapped into the unit square (as stored).
+    #[must_use]
+    pub fn value_at(&self, x: DVec2) -> f64 {
+        let x = x - x.floor();
+        let i = ((x.x * self.width as f64) as usize).min(self.width - 1);
+        let j = ((x.y * self.height as f64) as usize).min(self.height - 1);
+        self.fixed[j * self.width + i] as f64 / FIXED_ONE
+    }
+
+    /// Σ of fixed-point values over texel columns [i0, i1) × rows [j0, j1).
+    fn rect_sum(&self, (i0, i1): (usize, usize), (j0, j1): (usize, usize)) -> u64 {
+        let s = self.width + 1;
+        self.sat[j1 * s + i1] + self.sat[j0 * s + i0]
+            - self.sat[j0 * s + i1]
+            - self.sat[j1 * s + i0]
+    }
+
+    /// Whether d takes one value over the box [min, min + size]² (inside the unit square).
+    #[must_use]
+    pub fn is_constant_over(&self, min: DVec2, size: f64) -> bool {
+        if self.uniform.is_some() {
+            return true;
+        }
+        let columns = TexelSpan::new(min.x, min.x + size, self.width);
+        let rows = TexelSpan::new(min.y, min.y + size, self.height);
+        let count = |table: &[u32], stride: usize, (i0, i1): (usize, usize), (j0, j1)| {
+            if i1 <= i0 || j1 <= j0 {
+                return 0;
+            }
+            table[j1 * stride + i1] + table[j0 * stride + i0]
+                - table[j0 * stride + i1]
+                - table[j1 * stride + i0]
+        };
+        // Changes between columns i and i + 1 for first ≤ i < last, over the rows spanned;
+        // between rows j and j + 1 for first ≤ j < last, over the columns spanned.
+        count(
+            &self.column_changes,
+            self.width,
+            (columns.first, columns.last),
+            (rows.first, rows.last + 1),
+        ) == 0
+            && count(
+                &self.row_changes,
+                self.width + 1,
+                (columns.first, columns.last + 1),
+                (rows.first, rows.last),
+            ) == 0
+    }
+
+    /// ∫d over the box [min, min + size]² in fixed-point texel units (proportional to the
+    /// mass; exactly 0 when every texel it covers is 0).
+    fn box_mass(&self, min: DVec2, size: f64) -> f64 {
+        let columns = TexelSpan::new(min.x, min.x + size, self.width);
+        let rows = TexelSpan::new(min.y, min.y + size, self.height);
+        let mut mass = 0.0;
+        for (j0, j1, row_weight) in rows.groups() {
+            for (i0, i1, column_weight) in columns.groups() {
+                mass += self.rect_sum((i0, i1), (j0, j1)) as f64 * (column_weight * row_weight);
+            }
+        }
+        mass
+    }
+
+    /// The probabilities of the four quarters of the box [min, min + size]² (quarter j at
+    /// column j mod 2, row j div 2), proportional to their masses; `None` where the map is
+    /// constant over the box (then they are ¼ each, and the tree draws them as it does
+    /// without a map).
+    #[must_use]
+    pub fn quarter_probabilities(&self, min: DVec2, size: f64) -> Option<[f64; 4]> {
+        if self.is_constant_over(min, size) {
+            return None;
+        }
+        let half = 0.5 * size;
+        let masses = std::array::from_fn(|j| {
+            let corner = min + DVec2::new((j & 1) as f64, (j >> 1) as f64) * half;
+            self.box_mass(corner, half)
+        });
+        let total: f64 = masses.iter().sum();
+        Some(if total > 0.0 {
+            masses.map(|m: f64| m / total)
+        } else {
+            [0.25; 4]
+        })
+    }
+
+    /// The position in the box [min, min + size]² of the particle with uniform numbers `u`
+    /// (in [0, 1)²): u₀ picks the column by the box's marginal masses and the position within
+    /// it, u₁ the row within that column and the position within it. The inverse of the
+    /// map's distribution restricted to the box, so positions follow d exactly and no texel
+    /// of value 0 receives one (where the box holds mass at all).
+    #[must_use]
+    pub fn place(&self, min: DVec2, size: f64, u: [f64; 2]) -> DVec2 {
+        let columns = TexelSpan::new(min.x, min.x + size, self.width);
+        let rows = TexelSpan::new(min.y, min.y + size, self.height);
+        let column_mass = |i: usize| {
+            rows.groups()
+                .map(|(j0, j1, w)| self.rect_sum((i, i + 1), (j0, j1)) as f64 * w)
+                .sum::<f64>()
+                * columns.weight(i)
+        };
+        let total: f64 = (columns.first..=columns.last).map(column_mass).sum();
+        let (i, t) = invert(columns.first..=columns.last, column_mass, u[0] * total);
+        let cell_mass = |j: usize| self.fixed[j * self.width + i] as f64 * rows.weight(j);
+        let row_total: f64 = (rows.first..=rows.last).map(cell_mass).sum();
+        let (j, s) = invert(rows.first..=rows.last, cell_mass, u[1] * row_total);
+        let within = |k: usize, n: usize, lo: f64, hi: f64, t: f64| {
+            let a = (k as f64 / n as f64).max(lo);
+            let b = ((k + 1) as f64 / n as f64).min(hi);
+            (a + t * (b - a)).clamp(a, b)
+        };
+        DVec2::new(
+            within(i, self.width, min.x, min.x + size, t),
+            within(j, self.height, min.y, min.y + size, s),
+        )
+    }
+
+    /// ∫_A d over the footprint's parallelogram, counting each integer translate (as the tree
+    /// counts particles): exact texel by texel up to 65 536 texels in its bounding box, else its
+    /// area times the map's mean (what the tree's periodic average assumes).
+    #[must_use]
+    pub fn mass_in(&self, footprint: &Footprint) -> f64 {
+        if let Some(value) = self.uniform {
+            return footprint.area() * value;
+        }
+        let (min, max) = footprint.bounds();
+        let scale = DVec2::new(self.width as f64, self.height as f64);
+        let (lo, hi) = ((min * scale).floor(), (max * scale).ceil());
+        let texels = (hi.x - lo.x) * (hi.y - lo.y);
+        if footprint.is_degenerate() {
+            return 0.0;
+        }
+        if !(texels <= MAX_INTEGRATED_TEXELS) {
+            return footprint.area() * self.mean;
+        }
+        let corners = footprint.corners();
+        let mut mass = 0.0;
+        for row in lo.y as i64..hi.y as i64 {
+            let (y0, y1) = (row as f64 / scale.y, (row + 1) as f64 / scale.y);
+            let strip = clip(&corners, |p| p.y - y0, |p| y1 - p.y);
+            if strip.len() < 3 {
+                continue;
+            }
+            let j = row.rem_euclid(self.height as i64) as usize;
+            for column in lo.x as i64..hi.x as i64 {
+                let (x0, x1) = (column as f64 / scale.x, (column + 1) as f64 / scale.x);
+                let i = column.rem_euclid(self.width as i64) as usize;
+                let value = self.fixed[j * self.width + i];
+                if value == 0 {
+                    continue;
+                }
+                let piece = clip(&strip, |p| p.x - x0, |p| x1 - p.x);
+                mass += polygon_area(&piece) * value as f64;
+            }
+        }
+        mass / FIXED_ONE
+    }
+}
+
+/// The index k of `range` where the cumulative `mass` passes `target`, and the fraction of
+/// k's own mass below it (skipping zero masses; the last positive one if rounding runs past).
+fn invert(
+    range: std::ops::RangeInclusive<usize>,
+    mass: impl Fn(usize) -> f64,
+    target: f64,
+) -> (usize, f64) {
+    let mut before = 0.0;
+    let mut last_positive = (*range.start(), 1.0);
+    for k in range {
+        let m = mass(k);
+        if m <= 0.0 {
+            continue;
+        }
+        if before + m > target {
+            return (k, ((target - before) / m).clamp(0.0, 1.0));
+        }
+        before += m;
+        last_positive = (k, 1.0);
+    }
+    last_positive
+}
+
+/// The convex polygon `points` cut to where both `inside_a` and `inside_b` are ≥ 0
+/// (Sutherland–Hodgman, each an affine function of the point).
+fn clip(
+    points: &[DVec2],
+    inside_a: impl Fn(DVec2) -> f64,
+    inside_b: impl Fn(DVec2) -> f64,
+) -> Vec<DVec2> {
+    let once = |points: &[DVec2], inside: &dyn Fn(DVec2) -> f64| {
+        let mut out = Vec::with_capacity(points.len() + 2);
+        for (k, &p) in points.iter().enumerate() {
+            let q = points[(k + 1) % points.len()];
+            let (fp, fq) = (inside(p), inside(q));
+            if fp >= 0.0 {
+                out.push(p);
+            }
+            if (fp >= 0.0) != (fq >= 0.0) {
+                out.push(p + (q - p) * (fp / (fp - fq)));
+            }
+        }
+        out
+    };
+    let first = once(points, &inside_a);
+    if first.len() < 3 {
+        return first;
+    }
+    once(&first, &inside_b)
+}
+
+/// The area of a simple polygon (shoelace).
+fn polygon_area(points: &[DVec2]) -> f64 {
+    if points.len() < 3 {
+        return 0.0;
+    }
+    let twice: f64 = (0..points.len())
+        .map(|k| points[k].perp_dot(points[(k + 1) % points.len()]))
+        .sum();
+    0.5 * twice.abs()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tea::{TeaRng, unit_pair};
+
+    /// A map of `width` × `height` with a few repeated values (so some boxes are constant),
+    /// zeros included.
+    fn patchy(width: usize, height: usize, seed: u32) -> (DensityMap, Vec<f64>) {
+        let mut rng = TeaRng::new([seed, 1, 2, 3], 0, 8);
+        let levels = [0.0, 0.25, 1.0, 0.6];
+        let values: Vec<f64> = (0..width * height)
+            .map(|k| {
+                let block = (k % width) / 3 + (k / width) / 2;
+                levels[(block + usize::from(rng.next_bits().is_multiple_of(5))) % 4]
+            })
+            .collect();
+        (DensityMap::new(width, height, &values).unwrap(), values)
+    }
+
+    /// d at texel (column i, row j counted from v = 0), from the values as given (top row
+    /// first).
+    fn texel(values: &[f64], width: usize, height: usize, i: usize, j: usize) -> f64 {
+        values[(height - 1 - j) * width + i]
+    }
+
+    /// ∫d over [x0, x1] × [y0, y1] (inside the square) texel by texel, from the values as
+    /// given.
+    fn brute_mass(values: &[f64], (w, h): (usize, usize), x: [f64; 2], y: [f64; 2]) -> f64 {
+        let mut mass = 0.0;
+        for j in 0..h {
+            for i in 0..w {
+                let ox =
+                    (x[1].min((i + 1) as f64 / w as f64) - x[0].max(i as f64 / w as f64)).max(0.0);
+                let oy =
+                    (y[1].min((j + 1) as f64 / h as f64) - y[0].max(j as f64 / h as f64)).max(0.0);
+                mass += texel(values, w, h, i, j) * ox * oy;
+            }
+        }
+        mass
+    }
+
+    #[test]
+    fn quarter_probabilities_and_constancy_match_the_texels() {
+        for (w, h, seed) in [(8, 8, 1), (7, 5, 2), (37, 23, 3), (1, 9, 4), (64, 1, 5)] {
+            let (map, values) = patchy(w, h, seed);
+            for level in 0..8u32 {
+                let size = 0.5f64.powi(level as i32);
+                let boxes = 1usize << level;
+                for bx in 0..boxes.min(16) {
+                    for by in 0..boxes.min(16) {
+                        let min = DVec2::new(bx as f64, by as f64) * size;
+                        // Constancy: every texel the box covers with positive area alike.
+                        let mut seen = Vec::new();
+                        for j in 0..h {
+                            for i in 0..w {
+                                let ox = ((min.x + size).min((i + 1) as f64 / w as f64)
+                                    - min.x.max(i as f64 / w as f64))
+                                    > 0.0;
+                                let oy = ((min.y + size).min((j + 1) as f64 / h as f64)
+                                    - min.y.max(j as f64 / h as f64))
+                                    > 0.0;
+                                if ox && oy {
+                                    seen.push(texel(&values, w, h, i, j));
+                                }
+                            }
+                        }
+                        let constant = seen.iter().all(|&v| v == seen[0]);
+                        assert_eq!(
+                            map.is_constant_over(min, size),
+                            constant,
+                            "{w}x{h} {min} {size}"
+                        );
+                        let Some(p) = map.quarter_probabilities(min, size) else {
+                            continue;
+                        };
+                        let half = 0.5 * size;
+                        let masses: Vec<f64> = (0..4)
+                            .map(|q| {
+                                let c = min + DVec2::new((q & 1) as f64, (q >> 1) as f64) * half;
+                                brute_mass(&values, (w, h), [c.x, c.x + half], [c.y, c.y + half])
+                            })
+                            .collect();
+                        let total: f64 = masses.iter().sum();
+                        for q in 0..4 {
+                            assert!(
+                                (p[q] - masses[q] / total).abs() < 1e-9,
+                                "{w}x{h} {min}: {p:?} {masses:?}"
+                            );
+                            assert_eq!(
+                                p[q] == 0.0,
+                                masses[q] == 0.0,
+                                "zero masses are exactly zero"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Positions placed in a box follow d restricted to the box: the share landing in each
+    /// texel matches its mass (chi-square-like bound), and none lands where d = 0.
+    #[test]
+    fn placed_positions_follow_the_map() {
+        let (map, values) = patchy(7, 5, 9);
+        let (w, h) = (7, 5);
+        let mut rng = TeaRng::new([4, 4, 4, 4], 0, 8);
+        for (min, size) in [
+            (DVec2::ZERO, 1.0),
+            (DVec2::new(0.25, 0.5), 0.25),
+            (DVec2::new(0.5, 0.0), 0.5),
+        ] {
+            let mut hits = vec![0.0; w * h];
+            let samples = 40_000;
+            for _ in 0..samples {
+                let p = map.place(min, size, unit_pair(rng.next_bits()));
+                assert!(p.x >= min.x && p.x <= min.x + size && p.y >= min.y && p.y <= min.y + size);
+                let (i, j) = (
+                    ((p.x * w as f64) as usize).min(w - 1),
+                    ((p.y * h as f64) as usize).min(h - 1),
+                );
+                assert!(
+                    texel(&values, w, h, i, j) > 0.0,
+                    "a particle at {p} where d = 0"
+                );
+                hits[j * w + i] += 1.0;
+            }
+            let total = brute_mass(
+                &values,
+                (w, h),
+                [min.x, min.x + size],
+                [min.y, min.y + size],
+            );
+            for j in 0..h {
+                for i in 0..w {
+                    let cell = [
+                        [
+                            (i as f64 / w as f64).max(min.x),
+                            ((i + 1) as f64 / w as f64).min(min.x + size),
+                        ],
+                        [
+                            (j as f64 / h as f64).max(min.y),
+                            ((j + 1) as f64 / h as f64).min(min.y + size),
+                        ],
+                    ];
+                    if cell[0][1] <= cell[0][0] || cell[1][1] <= cell[1][0] {
+                        continue;
+                    }
+                    let expected =
+                        samples as f64 * brute_mass(&values, (w, h), cell[0], cell[1]) / total;
+                    let observed = hits[j * w + i];
+                    assert!(
+                        (observed - expected).abs() <= 5.0 * expected.sqrt() + 1.0,
+                        "texel ({i}, {j}) of box {min} {size}: {observed} against {expected}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// ∫_A d over parallelograms, wrapped across tiles, against a fine midpoint rule over the
+    /// parallelogram's own parameters.
+    #[test]
+    fn mass_in_a_footprint_is_the_integral_over_the_parallelogram() {
+        let (map, _) = patchy(11, 6, 3);
+        let mut rng = TeaRng::new([8, 1, 8, 1], 0, 8);
+        for _ in 0..40 {
+            let [a, b] = unit_pair(rng.next_bits());
+            let [c, d] = unit_pair(rng.next_bits());
+            let uv = DVec2::new(a, b);
+            let dx = DVec2::new(0.02 + 0.5 * c, 0.1 * d - 0.05);
+            let dy = DVec2::new(0.2 * a - 0.1, 0.03 + 0.4 * d);
+            let footprint = Footprint::new(uv, dx, dy).unwrap();
+            let n = 600;
+            let mut sum = 0.0;
+            for s in 0..n {
+                for t in 0..n {
+                    let (s, t) = (
+                        (s as f64 + 0.5) / n as f64 - 0.5,
+                        (t as f64 + 0.5) / n as f64 - 0.5,
+                    );
+                    sum += map.value_at(uv + s * dx + t * dy);
+                }
+            }
+            let reference = sum / (n * n) as f64 * footprint.area();
+            let exact = map.mass_in(&footprint);
+            assert!(
+                (exact - reference).abs() < 0.01 * footprint.area(),
+                "{uv} {dx} {dy}: {exact} against {reference}"
+            );
+        }
+    }
+
+    #[test]
+    fn invalid_maps_are_refused_naming_the_texel() {
+        assert_eq!(
+            DensityMap::new(2, 2, &[0.0, 1.0, 1.5, 0.0]),
+            Err(DensityMapError::InvalidTexel {
+                column: 0,
+                row: 1,
+                value: 1.5
+            })
+        );
+        assert!(matches!(
+            DensityMap::new(2, 1, &[f64::NAN, 0.0]),
+            Err(DensityMapError::InvalidTexel {
+                column: 0,
+                row: 0,
+                ..
+            })
+        ));
+        assert_eq!(
+            DensityMap::new(2, 2, &[0.0; 4]),
+            Err(DensityMapError::Empty)
+        );
+        assert_eq!(
+            DensityMap::new(0, 3, &[]),
+            Err(DensityMapError::InvalidSize {
+                width: 0,
+                height: 3
+            })
+        );
+        assert_eq!(
+            DensityMap::new(2, 2, &[1.0; 3]),
+            Err(DensityMapError::WrongLength {
+                expected: 4,
+                given: 3
+            })
+        );
+        assert_eq!(
+            DensityMap::new(3, 2, &[1.0; 6]).unwrap().uniform_value(),
+            Some(1.0)
+        );
+    }
+}

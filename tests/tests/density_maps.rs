@@ -1,0 +1,315 @@
+//! glint-tree under a density map (issue 31): the particle density N·d(x) over the square.
+//! Counts are binomial with mean N·∫_A d·∫p on checkerboard and gradient maps, over footprints
+//! straddling texel edges and tiles; texels where d = 0 hold nothing; exact counts stay
+//! additive; a map of ones is no map, bit for bit; overlapping queries agree in any order.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use glam::DVec2;
+use glint_sphere::SphericalConic;
+use glint_tests::SplitMix64;
+use glint_tests::counts::{beckmann_density, conic_integral_by_sampling, queries_in_threads};
+use glint_tests::geometry::direction;
+use glint_tree::{CountTree, CountTreeConfig, DensityMap, Footprint, QueryScratch};
+
+fn conic(gamma_deg: f64) -> SphericalConic {
+    SphericalConic::new(
+        direction(0.3, 0.2),
+        direction(0.25, 0.2 + PI),
+        gamma_deg.to_radians(),
+    )
+    .unwrap()
+}
+
+/// An 8 × 8 checkerboard of 0.2 and 1, a 37 × 23 gradient in u (non-power-of-two texels
+/// that no dyadic box edge matches), and a mask: a disc of ones in zeros, 16 × 16.
+fn maps() -> Vec<(&'static str, usize, usize, Vec<f64>)> {
+    let checker = (0..64)
+        .map(|k| if (k % 8 + k / 8) % 2 == 0 { 0.2 } else { 1.0 })
+        .collect();
+    let gradient = (0..37 * 23).map(|k| (k % 37) as f64 / 36.0).collect();
+    vec![
+        ("checkerboard", 8, 8, checker),
+        ("gradient", 37, 23, gradient),
+        ("disc", 16, 16, disc(16)),
+    ]
+}
+
+/// An n × n map of ones inside a disc of radius 0.34 and zeros outside.
+fn disc(n: usize) -> Vec<f64> {
+    (0..n * n)
+        .map(|k| {
+            let centre = 0.5 * (n as f64 - 1.0);
+            let (x, y) = ((k % n) as f64 - centre, (k / n) as f64 - centre);
+            if (x * x + y * y).sqrt() < 0.34 * n as f64 {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+fn tree(particles: u64, epsilon: f64, seed: u64, map: Option<DensityMap>) -> CountTree {
+    let config = CountTreeConfig {
+        particles,
+        seed,
+        epsilon,
+        ..CountTreeConfig::default()
+    };
+    CountTree::with_density_map(config, beckmann_density(0.2, 0.2), map.map(Arc::new)).unwrap()
+}
+
+/// ∫d over an axis-aligned square footprint, wrapped across tiles, texel by texel from the
+/// values as given (row 0 at the top), independently of the map's own tables.
+fn square_mass(values: &[f64], (w, h): (usize, usize), centre: DVec2, side: f64) -> f64 {
+    let (x0, y0) = (centre.x - 0.5 * side, centre.y - 0.5 * side);
+    let mut mass = 0.0;
+    for tile_x in -1..=1 {
+        for tile_y in -1..=1 {
+            for j in 0..h {
+                for i in 0..w {
+                    let cx = [
+                        (i as f64 / w as f64) + tile_x as f64,
+                        ((i + 1) as f64 / w as f64) + tile_x as f64,
+                    ];
+                    let cy = [
+                        (j as f64 / h as f64) + tile_y as f64,
+                        ((j + 1) as f64 / h as f64) + tile_y as f64,
+                    ];
+                    let ox = (cx[1].min(x0 + side) - cx[0].max(x0)).max(0.0);
+                    let oy = (cy[1].min(y0 + side) - cy[0].max(y0)).max(0.0);
+                    mass += values[(h - 1 - j) * w + i] * ox * oy;
+                }
+            }
+        }
+    }
+    mass
+}
+
+/// Over 2000 footprints of side 1.3 texels at random positions (straddling texel edges and,
+/// near the square's edges, tiles), on 20 particle sets (seeds) of 100 footprints each, Σ
+/// counts matches Σ N·∫_A d·∫p within 5 standard errors, separately over the footprints of
+/// mean density above and below ½ (so particles in the wrong texels show): the binomial
+/// spread, plus each set's own fluctuation over the footprints it shares
+/// (`count_moment_errors`' realization term), plus the error of the independent Monte Carlo
+/// ∫p. With ε = 0, Σ (count − mean)² also matches Σ mean(1 − q), the binomial variance.
+/// The maps are fine against the particles' leaves in the sparse case (10⁴ particles on
+/// 64 × 64 texels: leaves span 4 × 4 texels and place their particles by the map).
+#[test]
+fn counts_follow_the_map_binomially() {
+    let sparse_checker: Vec<f64> = (0..64 * 64)
+        .map(|k| if (k % 64 + k / 64) % 2 == 0 { 0.2 } else { 1.0 })
+        .collect();
+    let cases = maps()
+        .into_iter()
+        .map(|(name, w, h, values)| (name, w, h, values, 2_000_000, 6.0))
+        .chain([("sparse checkerboard", 64, 64, sparse_checker, 10_000, 40.0)]);
+    let (sets, per_set) = (20, 100);
+    for (name, w, h, values, particles, gamma) in cases {
+        let conic = conic(gamma);
+        let (integral, integral_error) = conic_integral_by_sampling(
+            beckmann_density(0.2, 0.2).as_ref(),
+            &conic,
+            400_000,
+            &mut SplitMix64::new(4),
+        );
+        let map = DensityMap::new(w, h, &values).unwrap();
+        for epsilon in [0.0, 0.1] {
+            let side = 1.3 / w.max(h) as f64;
+            let mut rng = SplitMix64::new(17);
+            let mut scratch = QueryScratch::new();
+            // [counts, means, squares, variances] over footprints of mean density ≥ ½ and < ½.
+            let mut sums = [[0.0f64; 4]; 2];
+            for seed in 0..sets {
+                let tree = tree(particles, epsilon, seed, Some(map.clone()));
+                for _ in 0..per_set {
+                    let centre = DVec2::new(rng.uniform(), rng.uniform());
+                    let footprint =
+                        Footprint::new(centre, DVec2::new(side, 0.0), DVec2::new(0.0, side))
+                            .unwrap();
+                    let count = tree.query(&footprint, &conic, &mut scratch).count;
+                    let mass = square_mass(&values, (w, h), centre, side);
+                    let q = mass * integral;
+                    let mean = particles as f64 * q;
+                    let sum = &mut sums[usize::from(mass < 0.5 * side * side)];
+                    sum[0] += count;
+                    sum[1] += mean;
+                    sum[2] += (count - mean).powi(2);
+                    sum[3] += mean * (1.0 - q);
+                }
+            }
+            for (half, [counts, means, squares, variances]) in ["dense", "light"].iter().zip(sums) {
+                if means == 0.0 {
+                    continue;
+                }
+                let realization = means * side * side * per_set as f64;
+                let error = (variances + realization).sqrt() + means * integral_error / integral;
+                assert!(
+                    (counts - means).abs() < 5.0 * error,
+                    "{name}, ε {epsilon}, {half} footprints: Σ counts {counts} against Σ N·∫d·∫p \
+                     {means} ± {error}"
+                );
+                if epsilon == 0.0 {
+                    let dispersion = squares / variances;
+                    assert!(
+                        (dispersion - 1.0).abs() < 0.25,
+                        "{name}, {half}: Σ(count − mean)² / Σ mean(1 − q) = {dispersion}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Texels where d = 0 hold no particle: every footprint inside the disc map's zeros counts 0
+/// even with a cone that takes nearly every normal, while the ones hold N·∫d of them; also
+/// with 3000 particles on 64 × 64 texels, whose leaves straddle the disc's edge.
+#[test]
+fn masked_texels_hold_no_particle() {
+    masked_texels_hold_none_of(1_000_000, 16, 16, &disc(16));
+    masked_texels_hold_none_of(3000, 64, 64, &disc(64));
+}
+
+/// The disc map of `w` × `h` texels with `particles` particles.
+fn masked_texels_hold_none_of(particles: u64, w: usize, h: usize, values: &[f64]) {
+    let map = DensityMap::new(w, h, values).unwrap();
+    let tree = tree(particles, 0.0, 5, Some(map.clone()));
+    let wide = conic(170.0);
+    let mut scratch = QueryScratch::new();
+    let mut rng = SplitMix64::new(8);
+    let mut zero_footprints = 0;
+    for _ in 0..3000 {
+        let centre = DVec2::new(rng.uniform(), rng.uniform());
+        let side = 0.01 + 0.05 * rng.uniform();
+        if square_mass(values, (w, h), centre, side) > 0.0 {
+            continue;
+        }
+        zero_footprints += 1;
+        let footprint =
+            Footprint::new(centre, DVec2::new(side, 0.0), DVec2::new(0.0, side)).unwrap();
+        let result = tree.query(&footprint, &wide, &mut scratch);
+        assert_eq!(result.count, 0.0, "{centre} side {side}: {result:?}");
+    }
+    assert!(
+        zero_footprints > 300,
+        "{zero_footprints} footprints in the mask"
+    );
+    let tile = Footprint::new(DVec2::splat(0.5), DVec2::X, DVec2::Y).unwrap();
+    let all = tree.query(&tile, &wide, &mut scratch).count;
+    let expected = (particles as f64 * map.mean()).round();
+    assert!(
+        all <= expected && all > 0.95 * expected,
+        "{all} of {expected}"
+    );
+}
+
+/// ε = 0 under every map: a footprint split in two along a line at any slope counts exactly
+/// what the whole does.
+#[test]
+fn exact_counts_under_a_map_are_additive() {
+    let conic = conic(5.0);
+    for (name, w, h, values) in maps() {
+        let tree = tree(
+            50_000_000,
+            0.0,
+            9,
+            Some(DensityMap::new(w, h, &values).unwrap()),
+        );
+        let mut scratch = QueryScratch::new();
+        let mut rng = SplitMix64::new(21);
+        let mut found = 0.0;
+        for _ in 0..60 {
+            let uv = DVec2::new(rng.uniform(), rng.uniform());
+            let dx = DVec2::new(0.01 + 0.05 * rng.uniform(), 0.01 * rng.uniform());
+            let dy = DVec2::new(-0.01 * rng.uniform(), 0.01 + 0.05 * rng.uniform());
+            let whole = Footprint::new(uv, dx, dy).unwrap();
+            let left = Footprint::new(uv - 0.25 * dx, 0.5 * dx, dy).unwrap();
+            let right = Footprint::new(uv + 0.25 * dx, 0.5 * dx, dy).unwrap();
+            let total = tree.query(&whole, &conic, &mut scratch).count;
+            let parts = tree.query(&left, &conic, &mut scratch).count
+                + tree.query(&right, &conic, &mut scratch).count;
+            assert_eq!(total.fract(), 0.0);
+            assert_eq!(total, parts, "{name}: uv {uv}");
+            found += total;
+        }
+        assert!(found > 0.0, "{name}: the queries find particles");
+    }
+}
+
+/// A map of ones (of any size) is no map: the same counts, D̂, nodes visited, in exact and
+/// approximate evaluation, coloured or not, over small footprints, footprints across tiles and
+/// whole tiles. A constant map of c < 1 is the uniform material of round(N·c) particles.
+#[test]
+fn a_map_of_ones_is_no_map_bit_for_bit() {
+    let mut rng = SplitMix64::new(2);
+    for (epsilon, channels) in [(0.0, 0), (0.1, 0), (0.1, 3)] {
+        let config = CountTreeConfig {
+            particles: 300_000,
+            seed: 4,
+            epsilon,
+            colour_channels: channels,
+            ..CountTreeConfig::default()
+        };
+        let density = beckmann_density(0.3, 0.3);
+        let plain = CountTree::new(config, density.clone()).unwrap();
+        let ones = DensityMap::new(5, 3, &[1.0; 15]).unwrap();
+        let mapped = CountTree::with_density_map(config, density, Some(Arc::new(ones))).unwrap();
+        let (mut a, mut b) = (QueryScratch::new(), QueryScratch::new());
+        for k in 0..300 {
+            let side = [0.003, 0.05, 1.3][k % 3];
+            let uv = DVec2::new(rng.uniform(), rng.uniform());
+            let footprint = Footprint::new(
+                uv,
+                DVec2::new(side, 0.1 * side),
+                DVec2::new(-0.2 * side, side),
+            )
+            .unwrap();
+            let conic = conic(2.0 + 10.0 * rng.uniform());
+            assert_eq!(
+                plain.query(&footprint, &conic, &mut a),
+                mapped.query(&footprint, &conic, &mut b),
+                "ε {epsilon}, {channels} channels, {footprint:?}"
+            );
+        }
+    }
+}
+
+/// Under a map, one query's particles are every other query's: overlapping footprints queried
+/// through one scratch in any order, and through fresh scratches, give the same answers bit
+/// for bit, and so do four threads.
+#[test]
+fn mapped_queries_are_the_same_in_any_order_and_thread() {
+    let (_, w, h, values) = maps().remove(1);
+    let tree = tree(
+        10_000_000,
+        0.1,
+        6,
+        Some(DensityMap::new(w, h, &values).unwrap()),
+    );
+    let conic = conic(3.0);
+    let mut rng = SplitMix64::new(12);
+    let footprints: Vec<Footprint> = (0..400)
+        .map(|_| {
+            let uv = DVec2::new(rng.uniform(), rng.uniform());
+            Footprint::new(uv, DVec2::new(0.02, 0.003), DVec2::new(0.001, 0.02)).unwrap()
+        })
+        .collect();
+    let mut scratch = QueryScratch::new();
+    let forward: Vec<_> = footprints
+        .iter()
+        .map(|f| tree.query(f, &conic, &mut scratch))
+        .collect();
+    let fresh: Vec<_> = footprints
+        .iter()
+        .rev()
+        .map(|f| tree.query(f, &conic, &mut QueryScratch::new()))
+        .collect();
+    let threaded = queries_in_threads(&tree, &conic, &footprints, 4);
+    for (i, result) in forward.iter().enumerate() {
+        assert_eq!(*result, fresh[footprints.len() - 1 - i]);
+        assert_eq!(*result, threaded[i]);
+    }
+    assert!(forward.iter().any(|r| r.count > 0.0));
+}
