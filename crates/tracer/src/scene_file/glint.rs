@@ -1,0 +1,127 @@
+//! Glint materials (`type = "glint"`): their form in the file and their building into a
+//! [`DiscreteBrdf`], every parameter checked against the count tree's and glint-brdf's ranges.
+
+use std::sync::Arc;
+
+use glint_brdf::{DiscreteBrdf, GlintParameters, MultinomialMode, PdfQuadrature};
+use serde::Deserialize;
+
+use super::SCENE_NEGLIGIBLE_COUNT;
+use super::builder::{Builder, Checked, shown};
+use super::materials::{DistributionName, FresnelSection};
+use super::numbers::Roughness;
+use crate::material::{GlintMaterial, Material};
+
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum MultinomialName {
+    Exact,
+    Normal,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum PdfQuadratureName {
+    Cubature,
+    Qmc,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct GlintSection {
+    #[serde(default)]
+    distribution: DistributionName,
+    alpha: Roughness,
+    particles: f64,
+    /// The cone radius γ in degrees; `gamma`, its older name, is still read (deprecated).
+    #[serde(alias = "gamma")]
+    gamma_degrees: f64,
+    epsilon: Option<f64>,
+    seed: Option<u64>,
+    fresnel: Option<FresnelSection>,
+    multinomial: Option<MultinomialName>,
+    #[serde(default)]
+    coloured: bool,
+    sampling_scale: Option<f64>,
+    pdf_quadrature: Option<PdfQuadratureName>,
+    pdf_points: Option<usize>,
+    expected_footprint_area: Option<f64>,
+    negligible_count: Option<f64>,
+    uv_scale: Option<f64>,
+}
+
+impl Builder<'_> {
+    pub(super) fn glint(&self, field: &str, g: &GlintSection) -> Checked<Material> {
+        let distribution = self.microfacet(field, g.distribution, g.alpha)?;
+        let mut parameters = GlintParameters::new(distribution);
+        // 2⁵³, the count tree's limit: every whole number up to it is a double.
+        if !(g.particles >= 1.0
+            && g.particles <= 9_007_199_254_740_992.0
+            && g.particles.fract() == 0.0)
+        {
+            return self.fail(
+                format!("{field}.particles"),
+                format!(
+                    "must be a whole number in [1, 2^53], got {}",
+                    shown(g.particles)
+                ),
+            );
+        }
+        parameters.particles = g.particles as u64;
+        // glint-brdf's range, [10⁻⁶ rad, 60°].
+        let smallest = 1e-6f64.to_degrees();
+        if !(g.gamma_degrees >= smallest && g.gamma_degrees <= 60.0) {
+            return self.fail(
+                format!("{field}.gamma_degrees"),
+                format!(
+                    "the cone radius must be in [{smallest:.3e}°, 60°] (10⁻⁶ rad to 60°), got {}°",
+                    shown(g.gamma_degrees)
+                ),
+            );
+        }
+        parameters.gamma_radians = g.gamma_degrees.to_radians();
+        if let Some(epsilon) = g.epsilon {
+            parameters.epsilon = epsilon;
+        }
+        parameters.seed = g.seed.unwrap_or(0);
+        parameters.fresnel = self.fresnel(&format!("{field}.fresnel"), g.fresnel.as_ref())?;
+        parameters.multinomial = match g.multinomial {
+            None | Some(MultinomialName::Exact) => MultinomialMode::Exact,
+            Some(MultinomialName::Normal) => MultinomialMode::Normal,
+        };
+        parameters.colour_channels = if g.coloured { 3 } else { 0 };
+        if let Some(s) = g.sampling_scale {
+            parameters.sampling_scale = s;
+        }
+        if let Some(q) = g.pdf_quadrature {
+            parameters.pdf_quadrature = match q {
+                PdfQuadratureName::Cubature => PdfQuadrature::Cubature,
+                PdfQuadratureName::Qmc => PdfQuadrature::QuasiMonteCarlo,
+            };
+        }
+        if let Some(p) = g.pdf_points {
+            parameters.pdf_points = p;
+        }
+        if let Some(a) = g.expected_footprint_area {
+            parameters.expected_footprint_area = a;
+        }
+        let negligible_count = g.negligible_count.unwrap_or(SCENE_NEGLIGIBLE_COUNT);
+        if !(negligible_count >= 0.0 && negligible_count.is_finite()) {
+            return self.fail(
+                format!("{field}.negligible_count"),
+                format!(
+                    "must be finite and ≥ 0 (0 traverses every query), got {}",
+                    shown(negligible_count)
+                ),
+            );
+        }
+        parameters.negligible_count = negligible_count;
+        let uv_scale = self.positive(&format!("{field}.uv_scale"), g.uv_scale.unwrap_or(1.0))?;
+        let brdf = DiscreteBrdf::new(parameters).map_err(|e| self.brdf_error(field, &e))?;
+        Ok(Material::Glint(GlintMaterial {
+            brdf: Arc::new(brdf),
+            uv_scale,
+            plan_footprint_area: g.expected_footprint_area.is_none(),
+        }))
+    }
+}

@@ -1,0 +1,340 @@
+//! The `[materials.<name>]` sections: their form in the file (diffuse, conductor, plastic,
+//! mirror, mix; glint materials are in `glint`) and their building into [`Material`]s, mixes
+//! checked for cycles, nesting and the number of parts; the Fresnel terms and microfacet
+//! distributions they share; and the table of the materials a scene uses.
+
+use std::collections::BTreeMap;
+
+use glam::DVec3;
+use glint_brdf::{DistributionKind, Fresnel, Microfacet, MicrofacetBrdf, NormalSampling};
+use serde::Deserialize;
+
+use super::builder::{Builder, Checked, name_list, shown};
+use super::glint::GlintSection;
+use super::numbers::{Colour, Roughness};
+use crate::error::TracerError;
+use crate::limits::{self, echo};
+use crate::material::{Material, Mirror, Plastic};
+
+#[derive(Clone, Copy, Debug, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub(super) enum DistributionName {
+    #[default]
+    Beckmann,
+    Ggx,
+}
+
+/// The material types, by their `type`.
+const MATERIAL_TYPES: &[&str] = &["diffuse", "conductor", "plastic", "glint", "mirror", "mix"];
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DiffuseSection {
+    colour: Option<Colour>,
+    texture: Option<String>,
+    texture_scale: Option<[f64; 2]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConductorSection {
+    #[serde(default)]
+    distribution: DistributionName,
+    alpha: Roughness,
+    eta: Colour,
+    k: Colour,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MirrorSection {
+    colour: Option<Colour>,
+    fresnel: Option<FresnelSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlasticSection {
+    colour: Option<Colour>,
+    texture: Option<String>,
+    texture_scale: Option<[f64; 2]>,
+    #[serde(default)]
+    distribution: DistributionName,
+    alpha: Roughness,
+    #[serde(default = "default_eta")]
+    eta: f64,
+}
+
+fn default_eta() -> f64 {
+    1.5
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub(super) enum FresnelSection {
+    None,
+    Conductor { eta: Colour, k: Colour },
+    Dielectric { eta: f64 },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MixSection {
+    components: Vec<toml::Value>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ComponentSection {
+    material: String,
+    weight: f64,
+}
+
+/// The materials that shapes use, by name: only those used are built (a glint material builds
+/// its NDF quadrature), numbered in the order of their first use.
+#[derive(Debug)]
+pub(super) struct UsedMaterials<'s> {
+    /// Every material section of the file, by name.
+    sections: &'s BTreeMap<String, toml::Value>,
+    index: BTreeMap<String, u32>,
+    pub(super) materials: Vec<Material>,
+    pub(super) names: Vec<String>,
+}
+
+impl<'s> UsedMaterials<'s> {
+    /// None used yet of the material `sections`.
+    pub(super) fn new(sections: &'s BTreeMap<String, toml::Value>) -> Self {
+        Self {
+            sections,
+            index: BTreeMap::new(),
+            materials: Vec::new(),
+            names: Vec::new(),
+        }
+    }
+}
+
+impl Builder<'_> {
+    pub(super) fn microfacet(
+        &self,
+        field: &str,
+        kind: DistributionName,
+        alpha: Roughness,
+    ) -> Checked<Microfacet> {
+        let kind = match kind {
+            DistributionName::Beckmann => DistributionKind::Beckmann,
+            DistributionName::Ggx => DistributionKind::Ggx,
+        };
+        let Roughness(ax, ay) = alpha;
+        Microfacet::new(kind, ax, ay).map_err(|e| TracerError::Scene {
+            file: self.file.to_path_buf(),
+            field: format!("{field}.alpha"),
+            problem: e.to_string(),
+        })
+    }
+
+    /// A Fresnel term within glint-brdf's range (η in [10⁻³, 10³], k in [0, 10³]: the range
+    /// of every interface), its error naming `{field}.eta` or `{field}.k`.
+    fn checked_fresnel(&self, field: &str, fresnel: Fresnel) -> Checked<Fresnel> {
+        fresnel.validated().map_err(|e| match e {
+            glint_brdf::BrdfError::InvalidFresnel { parameter, .. } => {
+                self.brdf_error(&format!("{field}.{parameter}"), &e)
+            }
+            other => self.brdf_error(field, &other),
+        })
+    }
+
+    /// The Fresnel term of section `field` (absent: none).
+    pub(super) fn fresnel(
+        &self,
+        field: &str,
+        section: Option<&FresnelSection>,
+    ) -> Checked<Fresnel> {
+        let fresnel = match section {
+            None | Some(FresnelSection::None) => Fresnel::None,
+            Some(FresnelSection::Conductor { eta, k }) => Fresnel::Conductor {
+                eta: eta.rgb(),
+                k: k.rgb(),
+            },
+            Some(FresnelSection::Dielectric { eta }) => Fresnel::Dielectric { eta: *eta },
+        };
+        self.checked_fresnel(field, fresnel)
+    }
+
+    /// The index of material `name`, used at `field`, built on its first use.
+    pub(super) fn use_material(
+        &self,
+        used: &mut UsedMaterials<'_>,
+        name: &str,
+        field: &str,
+    ) -> Checked<u32> {
+        if let Some(&i) = used.index.get(name) {
+            return Ok(i);
+        }
+        let material = self.material(name, field, used.sections, &mut Vec::new())?;
+        used.materials.push(material);
+        used.names.push(name.to_string());
+        let i = (used.materials.len() - 1) as u32;
+        used.index.insert(name.to_string(), i);
+        Ok(i)
+    }
+
+    /// Builds material `name`, used at `used_at` (the field that names it). `visiting` holds
+    /// the mixes being built around it (for cycles and the nesting limit).
+    fn material(
+        &self,
+        name: &str,
+        used_at: &str,
+        sections: &BTreeMap<String, toml::Value>,
+        visiting: &mut Vec<String>,
+    ) -> Checked<Material> {
+        let Some(section) = sections.get(name) else {
+            return self.fail(
+                used_at,
+                format!(
+                    "unknown material `{}` (defined: {})",
+                    echo(name),
+                    name_list(sections.keys().map(String::as_str))
+                ),
+            );
+        };
+        let field = format!("materials.{}", echo(name));
+        if visiting.iter().any(|v| v == name) {
+            return self.fail(
+                field,
+                format!(
+                    "mix components form a cycle: {} → {}",
+                    visiting
+                        .iter()
+                        .map(|v| echo(v))
+                        .collect::<Vec<_>>()
+                        .join(" → "),
+                    echo(name)
+                ),
+            );
+        }
+        if visiting.len() >= limits::MAX_MIX_DEPTH {
+            return self.fail(
+                field,
+                format!("mixes nest deeper than {} levels", limits::MAX_MIX_DEPTH),
+            );
+        }
+        let parts = self.budget.material_parts.get() + 1;
+        if parts > limits::MAX_MATERIAL_PARTS {
+            return self.fail(
+                field,
+                format!(
+                    "the scene builds more than {} material parts (each use inside a mix counts)",
+                    limits::MAX_MATERIAL_PARTS
+                ),
+            );
+        }
+        self.budget.material_parts.set(parts);
+        let (kind, section) = self.tagged(&field, section.clone(), MATERIAL_TYPES)?;
+        Ok(match kind.as_str() {
+            "diffuse" => {
+                let d: DiffuseSection = self.section(&field, section)?;
+                Material::Diffuse(self.texture(
+                    &field,
+                    d.colour,
+                    d.texture.as_deref(),
+                    d.texture_scale,
+                )?)
+            }
+            "conductor" => {
+                let c: ConductorSection = self.section(&field, section)?;
+                let distribution = self.microfacet(&field, c.distribution, c.alpha)?;
+                let fresnel = self.checked_fresnel(
+                    &field,
+                    Fresnel::Conductor {
+                        eta: c.eta.rgb(),
+                        k: c.k.rgb(),
+                    },
+                )?;
+                Material::Microfacet(
+                    MicrofacetBrdf::new(distribution, fresnel, NormalSampling::Distribution)
+                        .map_err(|e| self.brdf_error(&format!("{field}.eta"), &e))?,
+                )
+            }
+            "plastic" => {
+                let p: PlasticSection = self.section(&field, section)?;
+                let distribution = self.microfacet(&field, p.distribution, p.alpha)?;
+                let eta = p.eta;
+                self.checked_fresnel(&field, Fresnel::Dielectric { eta })?;
+                Material::Plastic(Plastic {
+                    base: self.texture(&field, p.colour, p.texture.as_deref(), p.texture_scale)?,
+                    coat: MicrofacetBrdf::new(
+                        distribution,
+                        Fresnel::Dielectric { eta },
+                        NormalSampling::Distribution,
+                    )
+                    .map_err(|e| self.brdf_error(&format!("{field}.eta"), &e))?,
+                    eta,
+                })
+            }
+            "glint" => {
+                let g: GlintSection = self.section(&field, section)?;
+                self.glint(&field, &g)?
+            }
+            "mirror" => {
+                let m: MirrorSection = self.section(&field, section)?;
+                let colour = match m.colour {
+                    None => DVec3::ONE,
+                    Some(c) => self.colour_at_most(
+                        &format!("{field}.colour"),
+                        c,
+                        1.0,
+                        "reflectance factor",
+                    )?,
+                };
+                Material::Mirror(Mirror {
+                    colour,
+                    fresnel: self.fresnel(&format!("{field}.fresnel"), m.fresnel.as_ref())?,
+                })
+            }
+            _ => {
+                let m: MixSection = self.section(&field, section)?;
+                if m.components.is_empty() {
+                    return self.fail(
+                        format!("{field}.components"),
+                        "a mix needs at least one component",
+                    );
+                }
+                visiting.push(name.to_string());
+                let mut parts = Vec::new();
+                for (i, c) in m.components.into_iter().enumerate() {
+                    let component = format!("{field}.components[{i}]");
+                    let c: ComponentSection = self.section(&component, c)?;
+                    let weight = c.weight;
+                    if !(0.0..=limits::MAX_MIX_WEIGHT).contains(&weight) {
+                        return self.fail(
+                            format!("{component}.weight"),
+                            format!(
+                                "must be in [0, {}], got {}",
+                                limits::MAX_MIX_WEIGHT,
+                                shown(weight)
+                            ),
+                        );
+                    }
+                    let used_at = format!("{component}.material");
+                    let part = self.material(&c.material, &used_at, sections, visiting)?;
+                    if matches!(part, Material::Mirror(_)) {
+                        return self.fail(
+                            used_at,
+                            format!(
+                                "`{}` is a mirror, which cannot be a mix component (a delta \
+                                 reflection has no density to mix)",
+                                echo(&c.material)
+                            ),
+                        );
+                    }
+                    parts.push((weight, part));
+                }
+                visiting.pop();
+                if !(parts.iter().map(|p| p.0).sum::<f64>() > 0.0) {
+                    return self.fail(format!("{field}.components"), "the weights sum to zero");
+                }
+                Material::Mix(parts)
+            }
+        })
+    }
+}
