@@ -426,7 +426,7 @@ pub fn skipped_query_particles(
     parameters.particles = particles as u64;
     parameters.gamma_radians = 6f64.to_radians();
     parameters.epsilon = 0.0;
-    let exact = DiscreteBrdf::new(parameters).expect("valid material");
+    let exact = DiscreteBrdf::new(parameters.clone()).expect("valid material");
     parameters.negligible_count = 0.5;
     let skipping = DiscreteBrdf::new(parameters).expect("valid material");
     let mut scratch = QueryScratch::new();

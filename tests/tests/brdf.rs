@@ -352,7 +352,7 @@ fn the_bound_bxdf_is_the_glint_model() {
         eta: DVec3::new(0.2, 0.9, 1.1),
         k: DVec3::new(3.9, 2.4, 2.2),
     };
-    let brdf = DiscreteBrdf::new(parameters).unwrap();
+    let brdf = DiscreteBrdf::new(parameters.clone()).unwrap();
     let mut scratch = QueryScratch::new();
     let mut tree_scratch = QueryScratch::new();
     let mut rng = SplitMix64::new(5);
@@ -472,7 +472,7 @@ fn expected_count_bound_bounds_the_expected_count() {
             parameters.particles = 1_000_000_000;
             parameters.gamma_radians = f64::to_radians(gamma_deg);
             parameters.negligible_count = 1e-12;
-            let brdf = DiscreteBrdf::new(parameters).unwrap();
+            let brdf = DiscreteBrdf::new(parameters.clone()).unwrap();
             let density = move |m: DVec3| d.particle_density(m);
             for case in 0..40 {
                 let wi = direction(rng.uniform() * 1.55, 2.0 * PI * rng.uniform());

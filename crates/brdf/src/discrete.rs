@@ -41,13 +41,16 @@
 //! sampler ([`DiscreteBrdf::sample_direction`], [`DiscreteBrdf::sampling_pdf`]) so that its
 //! sampling does not depend on whether a footprint is known.
 
-use glam::DVec3;
+use std::sync::Arc;
+
+use glam::{DVec2, DVec3};
 use glint_sphere::{ConeRadius, SphericalConic};
 use glint_tree::{
-    CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryResult, QueryScratch,
+    CountTree, CountTreeConfig, DensityMap, Footprint, MultinomialMode, QueryResult, QueryScratch,
     expected_conic_solid_angle,
 };
 
+use crate::bxdf::Bxdf;
 use crate::cone::cone_solid_angle;
 use crate::distribution::{Microfacet, NormalSampling};
 use crate::error::BrdfError;
@@ -56,6 +59,7 @@ use crate::glint::GlintBxdf;
 use crate::glint_sampling::{GlintSampler, PdfQuadrature};
 use crate::negligible::NegligibleTest;
 use crate::smooth::{MicrofacetBrdf, above_horizon, given};
+use crate::surface_maps::{RoughnessLevel, RoughnessMap, TintMap, roughness_levels};
 
 /// The parameters of a glint material.
 ///
@@ -74,7 +78,13 @@ use crate::smooth::{MicrofacetBrdf, above_horizon, given};
 /// | `pdf_points` | QMC points of the sampling pdf, when `pdf_quadrature` is QMC | 64 |
 /// | `expected_footprint_area` | the footprint area Eq. 11 plans for | 10⁻⁶ |
 /// | `negligible_count` | skip queries whose expected count is below this | 0 (off) |
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// | `density_map` | d(x) ∈ [0, 1]: N·d(x) flakes per unit area; 0 masks ([`DensityMap`]) | none (d = 1) |
+/// | `alpha_map` | α(x), isotropic, replacing the distribution's ([`RoughnessMap`]) | none |
+/// | `tint_map` | t(x) ∈ [0, 1]³ scaling the flakes' reflectance ([`TintMap`]) | none |
+/// | `roughness_levels` | K, the most count trees an `alpha_map` gets (exact up to K distinct α) | 8 |
+///
+/// The maps are described in [`crate::surface_maps`].
+#[derive(Clone, Debug, PartialEq)]
 pub struct GlintParameters {
     /// D and its roughness (α_x, α_y).
     pub distribution: Microfacet,
@@ -105,13 +115,23 @@ pub struct GlintParameters {
     /// Queries whose expected count is provably below this are answered 0 without a tree
     /// traversal (see the `negligible` module); 0 disables the test.
     pub negligible_count: f64,
+    /// The particle density N·d(x) over the square (`None`: d = 1 everywhere).
+    pub density_map: Option<Arc<DensityMap>>,
+    /// The flakes' roughness α(x), isotropic, in place of the distribution's (α_x, α_y)
+    /// (`None`: the distribution's everywhere).
+    pub alpha_map: Option<Arc<RoughnessMap>>,
+    /// A tint t(x) that scales the flakes' reflectance (`None`: no tint).
+    pub tint_map: Option<Arc<TintMap>>,
+    /// K: the most roughness levels (count trees) an `alpha_map` gets. Exact where the map
+    /// takes at most K distinct values; else levels interpolated in log α.
+    pub roughness_levels: usize,
 }
 
 impl GlintParameters {
     /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, seed 0, F = 1,
     /// exact multinomials, no colour, α_s = 2α, cubature rules for the sampling pdf
     /// (64 QMC points when switched to QMC), footprints of 10⁻⁶, every
-    /// query traversed (no negligible-query test).
+    /// query traversed (no negligible-query test), no maps (8 roughness levels for one).
     #[must_use]
     pub fn new(distribution: Microfacet) -> Self {
         Self {
@@ -128,24 +148,48 @@ impl GlintParameters {
             pdf_points: 64,
             expected_footprint_area: 1e-6,
             negligible_count: 0.0,
+            density_map: None,
+            alpha_map: None,
+            tint_map: None,
+            roughness_levels: 8,
         }
     }
 }
 
-/// The discrete stochastic microfacet BRDF of a material: its particle set (a count tree),
-/// its sampler and its smooth limit. Evaluate it at a shading point with [`DiscreteBrdf::at`].
+/// The discrete stochastic microfacet BRDF of a material: its particle set (a count tree per
+/// roughness level), its sampler and its smooth limit. Evaluate it at a shading point with
+/// [`DiscreteBrdf::at`].
 #[derive(Clone, Debug)]
 pub struct DiscreteBrdf {
     parameters: GlintParameters,
-    tree: CountTree,
-    smooth: MicrofacetBrdf,
-    sampler: GlintSampler,
+    /// One per roughness level: a single one without an `alpha_map`.
+    layers: Vec<Layer>,
     /// σ(Ω_o) of Eq. 5.
     cone_solid_angle: f64,
     /// γ with its trigonometry, so that building a query's conic needs none.
     cone: ConeRadius,
+}
+
+/// One roughness level of a material: the particles whose normals follow D(α_k), with density
+/// N·d_k(x) (see [`crate::surface_maps`]), and what evaluates them.
+#[derive(Clone, Debug)]
+struct Layer {
+    tree: CountTree,
+    smooth: MicrofacetBrdf,
+    sampler: GlintSampler,
     /// What the negligible-query test needs (only when queries may be skipped).
     negligible_test: Option<NegligibleTest>,
+    /// max d_k, for the negligible-query bound (1 without a density map).
+    max_density: f64,
+    /// ∫d_k over the square: the level's share of the material's flakes.
+    mean_density: f64,
+}
+
+impl Layer {
+    /// d_k at `uv` (1 without a density map).
+    fn density_at(&self, uv: DVec2) -> f64 {
+        self.tree.density_map().map_or(1.0, |map| map.value_at(uv))
+    }
 }
 
 /// One tree query (Eq. 6) with f̂ from it (Eq. 5).
@@ -156,6 +200,105 @@ pub(crate) struct ConicQuery {
     pub(crate) f_hat: DVec3,
     /// `Some(λ̄)` when the traversal was skipped as negligible.
     pub(crate) negligible: Option<f64>,
+}
+
+impl ConicQuery {
+    /// The answer of a query skipped as negligible, with its bound λ̄.
+    fn skipped(bound: f64) -> Self {
+        Self {
+            result: QueryResult {
+                count: 0.0,
+                d_hat: [0.0; 3],
+                nodes_visited: 0,
+                nodes_overlapping: 0,
+                truncated: false,
+                periodic_average: false,
+            },
+            f_hat: DVec3::ZERO,
+            negligible: Some(bound),
+        }
+    }
+
+    /// This answer with another roughness level's added.
+    fn plus(self, other: QueryResult, f_hat: DVec3) -> Self {
+        let mine = self.result;
+        Self {
+            result: QueryResult {
+                count: mine.count + other.count,
+                d_hat: std::array::from_fn(|c| mine.d_hat[c] + other.d_hat[c]),
+                nodes_visited: mine.nodes_visited + other.nodes_visited,
+                nodes_overlapping: mine.nodes_overlapping + other.nodes_overlapping,
+                truncated: mine.truncated || other.truncated,
+                periodic_average: mine.periodic_average || other.periodic_average,
+            },
+            f_hat: self.f_hat + f_hat,
+            negligible: None,
+        }
+    }
+}
+
+impl Layer {
+    /// Roughness level `k` of a material with `parameters` (validated but for the level's
+    /// own): its distribution (D(α_k), or the material's), tree, sampler and negligible test.
+    fn new(
+        parameters: &GlintParameters,
+        k: usize,
+        level: RoughnessLevel,
+    ) -> Result<Self, BrdfError> {
+        let gamma = parameters.gamma_radians;
+        let distribution = match level.alpha {
+            Some(alpha) => Microfacet::new(parameters.distribution.kind(), alpha, alpha)?,
+            None => parameters.distribution,
+        };
+        let smooth = MicrofacetBrdf::new(
+            distribution,
+            parameters.fresnel,
+            NormalSampling::Distribution,
+        )?;
+        let sampler = GlintSampler::new(
+            distribution,
+            parameters.sampling_scale,
+            gamma,
+            parameters.pdf_quadrature,
+            parameters.pdf_points,
+        )?;
+        let config = CountTreeConfig {
+            particles: parameters.particles,
+            seed: layer_seed(parameters.seed, k),
+            epsilon: parameters.epsilon,
+            multinomial: parameters.multinomial,
+            expected_query_area: parameters.expected_footprint_area,
+            expected_query_solid_angle: expected_conic_solid_angle(gamma),
+            colour_channels: parameters.colour_channels,
+            ..CountTreeConfig::default()
+        };
+        let (max_density, mean_density) = level
+            .density
+            .as_ref()
+            .map_or((1.0, 1.0), |map| (map.max(), map.mean()));
+        let tree = CountTree::with_density_map(
+            config,
+            Arc::new(move |m: DVec3| distribution.particle_density(m)),
+            level.density,
+        )?;
+        let negligible_test =
+            (parameters.negligible_count > 0.0).then(|| NegligibleTest::new(&tree, distribution));
+        Ok(Self {
+            tree,
+            smooth,
+            sampler,
+            negligible_test,
+            max_density,
+            mean_density,
+        })
+    }
+}
+
+/// The seed of roughness level `k`'s particles: the material's for the first, then seeds that
+/// differ from it by multiples of the golden-ratio constant (independent particle sets).
+#[must_use]
+pub fn layer_seed(seed: u64, k: usize) -> u64 {
+    seed.wrapping_add((k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
 }
 
 impl DiscreteBrdf {
@@ -188,43 +331,21 @@ impl DiscreteBrdf {
                 points: parameters.pdf_points,
             });
         }
-        let distribution = parameters.distribution;
-        let smooth = MicrofacetBrdf::new(
-            distribution,
-            parameters.fresnel,
-            NormalSampling::Distribution,
+        let levels = roughness_levels(
+            parameters.density_map.as_ref(),
+            parameters.alpha_map.as_deref(),
+            parameters.roughness_levels,
         )?;
-        let sampler = GlintSampler::new(
-            distribution,
-            parameters.sampling_scale,
-            gamma,
-            parameters.pdf_quadrature,
-            parameters.pdf_points,
-        )?;
-        let config = CountTreeConfig {
-            particles: parameters.particles,
-            seed: parameters.seed,
-            epsilon: parameters.epsilon,
-            multinomial: parameters.multinomial,
-            expected_query_area: parameters.expected_footprint_area,
-            expected_query_solid_angle: expected_conic_solid_angle(gamma),
-            colour_channels: parameters.colour_channels,
-            ..CountTreeConfig::default()
-        };
-        let tree = CountTree::new(
-            config,
-            std::sync::Arc::new(move |m: DVec3| distribution.particle_density(m)),
-        )?;
-        let negligible_test =
-            (parameters.negligible_count > 0.0).then(|| NegligibleTest::new(&tree, distribution));
+        let layers = levels
+            .into_iter()
+            .enumerate()
+            .map(|(k, level)| Layer::new(&parameters, k, level))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             parameters,
-            tree,
-            smooth,
-            sampler,
+            layers,
             cone_solid_angle: cone_solid_angle(gamma),
             cone: ConeRadius::new(gamma).map_err(|_| BrdfError::InvalidConeRadius { gamma })?,
-            negligible_test,
         })
     }
 
@@ -245,18 +366,28 @@ impl DiscreteBrdf {
         if !(area > 0.0 && area.is_finite()) {
             return Err(BrdfError::InvalidExpectedFootprintArea { area });
         }
+        let layers = self
+            .layers
+            .iter()
+            .enumerate()
+            .map(|(k, layer)| {
+                Ok(Layer {
+                    tree: layer
+                        .tree
+                        .with_realization(layer_seed(seed, k), expected_footprint_area)?,
+                    ..layer.clone()
+                })
+            })
+            .collect::<Result<Vec<_>, BrdfError>>()?;
         Ok(Self {
             parameters: GlintParameters {
                 seed,
                 expected_footprint_area,
-                ..self.parameters
+                ..self.parameters.clone()
             },
-            tree: self.tree.with_realization(seed, expected_footprint_area)?,
-            smooth: self.smooth,
-            sampler: self.sampler.clone(),
+            layers,
             cone_solid_angle: self.cone_solid_angle,
             cone: self.cone,
-            negligible_test: self.negligible_test,
         })
     }
 
@@ -267,16 +398,64 @@ impl DiscreteBrdf {
     }
 
     /// The smooth BRDF of the same material: the N → ∞ limit, and the model where no footprint
-    /// is known.
+    /// is known. Under maps, this is the first roughness level's model without the maps: use
+    /// [`DiscreteBrdf::smooth_at`], which weighs the levels, the density and the tint at a
+    /// texture position.
     #[must_use]
     pub fn smooth(&self) -> &MicrofacetBrdf {
-        &self.smooth
+        &self.layers[0].smooth
     }
 
-    /// The count tree (the particle set), for research and diagnostics.
+    /// Whether a density, roughness or tint map varies the material over its square.
+    #[must_use]
+    pub fn has_maps(&self) -> bool {
+        self.parameters.density_map.is_some()
+            || self.parameters.alpha_map.is_some()
+            || self.parameters.tint_map.is_some()
+    }
+
+    /// The smooth limit at texture position `uv`: Σ_k d_k(uv)·f_k(ω_i, ω_o), the roughness
+    /// levels' smooth BRDFs weighted by their densities there (d(uv)·f(α(uv)) where the
+    /// roughness map is exact), times the tint t(uv). Without maps, [`DiscreteBrdf::smooth`]'s
+    /// value, bit for bit.
+    #[must_use]
+    pub fn smooth_at(&self, wi: DVec3, wo: DVec3, uv: DVec2) -> DVec3 {
+        if !self.has_maps() {
+            return self.layers[0].smooth.eval(wi, wo);
+        }
+        let sum = self
+            .layers
+            .iter()
+            .map(|layer| {
+                let density = layer.density_at(uv);
+                if density > 0.0 {
+                    layer.smooth.eval(wi, wo) * density
+                } else {
+                    DVec3::ZERO
+                }
+            })
+            .fold(DVec3::ZERO, |a, b| a + b);
+        self.tint_at(uv) * sum
+    }
+
+    /// The count tree (the particle set) of the first roughness level (the only one without
+    /// an `alpha_map`), for research and diagnostics.
     #[must_use]
     pub fn tree(&self) -> &CountTree {
-        &self.tree
+        &self.layers[0].tree
+    }
+
+    /// The count trees of the roughness levels, with each level's α (`None`: the
+    /// distribution's own, without an `alpha_map`).
+    pub fn level_trees(&self) -> impl Iterator<Item = (Option<f64>, &CountTree)> {
+        self.layers.iter().map(|layer| {
+            let alpha = self
+                .parameters
+                .alpha_map
+                .as_ref()
+                .map(|_| layer.smooth.distribution().alpha().0);
+            (alpha, &layer.tree)
+        })
     }
 
     /// The glint BRDF at a shading point: `footprint` is the pixel's texture-space
@@ -294,17 +473,92 @@ impl DiscreteBrdf {
     /// The glint sampler's direction alone (Sec. 3.4): ω′ from the widened smooth model with
     /// `u[0..2]`, then ω_o uniform in the cone of radius γ around ω′ with `u[2..4]`. It does not
     /// depend on the footprint. For a renderer that needs f̂ or the pdf only for some samples;
-    /// [`Bxdf::sample`](crate::Bxdf::sample) on [`DiscreteBrdf::at`] gives all three.
+    /// [`Bxdf::sample`](crate::Bxdf::sample) on [`DiscreteBrdf::at`] gives all three. Under a
+    /// roughness map, the levels are chosen by their shares of the material's flakes: use
+    /// [`DiscreteBrdf::sample_direction_at`] where the texture position is known.
     #[must_use]
     pub fn sample_direction(&self, wi: DVec3, u: [f64; 4]) -> Option<DVec3> {
-        self.sampler.sample_direction(given(wi), u)
+        self.sample_from_mixture(wi, u, None)
     }
 
-    /// The density of [`DiscreteBrdf::sample_direction`] in solid angle (the same as
-    /// [`Bxdf::pdf`](crate::Bxdf::pdf) on [`DiscreteBrdf::at`], for any footprint).
+    /// The density of [`DiscreteBrdf::sample_direction`] in solid angle.
     #[must_use]
     pub fn sampling_pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
-        self.sampler.pdf(given(wi), given(wo))
+        self.mixture_pdf(wi, wo, None)
+    }
+
+    /// [`DiscreteBrdf::sample_direction`] at texture position `uv`: under a roughness map, the
+    /// level is chosen with probability d_k(uv)/Σ d_j(uv) by `u[0]` (rescaled to choose within
+    /// it), so the sampler follows the lobe mixture at the shading point (by the flakes' shares
+    /// where d(uv) = 0). The same as [`DiscreteBrdf::sample_direction`] with one level.
+    #[must_use]
+    pub fn sample_direction_at(&self, wi: DVec3, u: [f64; 4], uv: DVec2) -> Option<DVec3> {
+        self.sample_from_mixture(wi, u, Some(uv))
+    }
+
+    /// The density of [`DiscreteBrdf::sample_direction_at`] in solid angle (the same as
+    /// [`Bxdf::pdf`](crate::Bxdf::pdf) on [`DiscreteBrdf::at`] for a footprint centred at `uv`).
+    #[must_use]
+    pub fn sampling_pdf_at(&self, wi: DVec3, wo: DVec3, uv: DVec2) -> f64 {
+        self.mixture_pdf(wi, wo, Some(uv))
+    }
+
+    /// The levels' sampling weights at `uv` (their flake shares when `uv` is `None` or every
+    /// level's density is 0 there), summing to 1.
+    fn mixture_weights(&self, uv: Option<DVec2>) -> impl Iterator<Item = f64> + '_ {
+        let at = uv.map(|uv| self.layers.iter().map(|l| l.density_at(uv)).sum::<f64>());
+        let (local, total) = match at {
+            Some(total) if total > 0.0 => (uv, total),
+            _ => (None, self.layers.iter().map(|l| l.mean_density).sum()),
+        };
+        self.layers.iter().map(move |layer| {
+            let weight = local.map_or(layer.mean_density, |uv| layer.density_at(uv));
+            weight / total
+        })
+    }
+
+    fn sample_from_mixture(&self, wi: DVec3, u: [f64; 4], uv: Option<DVec2>) -> Option<DVec3> {
+        let wi = given(wi);
+        if let [layer] = self.layers.as_slice() {
+            return layer.sampler.sample_direction(wi, u);
+        }
+        // The level whose interval of cumulative weights holds u[0], and u[0] rescaled within it.
+        let mut below = 0.0;
+        let mut chosen = (self.layers.len() - 1, 0.0, 1.0);
+        for (k, weight) in self.mixture_weights(uv).enumerate() {
+            if weight > 0.0 {
+                chosen = (k, below, weight);
+                if u[0] < below + weight {
+                    break;
+                }
+            }
+            below += weight;
+        }
+        let (k, start, weight) = chosen;
+        let u0 = ((u[0] - start) / weight).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
+        self.layers[k]
+            .sampler
+            .sample_direction(wi, [u0, u[1], u[2], u[3]])
+    }
+
+    fn mixture_pdf(&self, wi: DVec3, wo: DVec3, uv: Option<DVec2>) -> f64 {
+        let (wi, wo) = (given(wi), given(wo));
+        if let [layer] = self.layers.as_slice() {
+            return layer.sampler.pdf(wi, wo);
+        }
+        self.mixture_weights(uv)
+            .zip(&self.layers)
+            .filter(|(weight, _)| *weight > 0.0)
+            .map(|(weight, layer)| weight * layer.sampler.pdf(wi, wo))
+            .sum()
+    }
+
+    /// t(uv), or 1 without a tint map.
+    fn tint_at(&self, uv: DVec2) -> DVec3 {
+        self.parameters
+            .tint_map
+            .as_ref()
+            .map_or(DVec3::ONE, |tint| tint.value_at(uv))
     }
 
     /// The tree query of Eq. 6 for (ω_i, ω_o) and f̂ from it (Eq. 5): the work every glint
@@ -333,40 +587,90 @@ impl DiscreteBrdf {
         let Some(conic) = self.conic(wi, wo) else {
             return Some(None);
         };
+        self.query_conic(&conic, footprint, scratch, self.cone_solid_angle, traverse)
+            .map(Some)
+    }
+
+    /// The query of `conic` in every roughness level, with f̂ for a cone of solid angle
+    /// `solid_angle` (the material's σ(Ω_o), or a light's cone), the levels' answers summed
+    /// and the tint filtered over the footprint applied. A level whose negligible-query bound
+    /// is below the material's threshold is skipped (answered 0); `traverse()` is asked once,
+    /// before the first traversal, and `None` returned if it says no.
+    pub(crate) fn query_conic(
+        &self,
+        conic: &SphericalConic,
+        footprint: &Footprint,
+        scratch: &mut QueryScratch,
+        solid_angle: f64,
+        traverse: impl FnOnce() -> bool,
+    ) -> Option<ConicQuery> {
         let (wi, wo) = (conic.wi(), conic.wo());
-        if let Some(test) = &self.negligible_test {
-            let bound = test.bound(
-                self.smooth.distribution(),
-                self.parameters.particles,
-                footprint.area(),
-                &conic,
-            );
+        let mut traverse = Some(traverse);
+        let mut answer: Option<ConicQuery> = None;
+        let mut skipped = 0.0;
+        for layer in &self.layers {
+            let bound = self.layer_bound(layer, footprint, conic);
             if bound < self.parameters.negligible_count {
-                return Some(Some(ConicQuery {
-                    result: QueryResult {
-                        count: 0.0,
-                        d_hat: [0.0; 3],
-                        nodes_visited: 0,
-                        nodes_overlapping: 0,
-                        truncated: false,
-                        periodic_average: false,
-                    },
-                    f_hat: DVec3::ZERO,
-                    negligible: Some(bound),
-                }));
+                skipped += bound;
+                continue;
             }
+            if let Some(traverse) = traverse.take()
+                && !traverse()
+            {
+                return None;
+            }
+            let result = layer.tree.query(footprint, conic, scratch);
+            let f_hat = self.f_hat_from_d_hat(
+                layer,
+                wi,
+                wo,
+                DVec3::from_array(result.d_hat),
+                footprint.area(),
+            ) * (self.cone_solid_angle / solid_angle);
+            answer = Some(match answer {
+                None => ConicQuery {
+                    result,
+                    f_hat,
+                    negligible: None,
+                },
+                Some(sum) => sum.plus(result, f_hat),
+            });
         }
-        if !traverse() {
-            return None;
+        let Some(mut answer) = answer else {
+            return Some(ConicQuery::skipped(skipped));
+        };
+        if let Some(tint) = &self.parameters.tint_map
+            && answer.f_hat != DVec3::ZERO
+        {
+            answer.f_hat *= tint.mean_over(footprint);
         }
-        let result = self.tree.query(footprint, &conic, scratch);
-        let f_hat =
-            self.f_hat_from_d_hat(wi, wo, DVec3::from_array(result.d_hat), footprint.area());
-        Some(Some(ConicQuery {
-            result,
-            f_hat,
-            negligible: None,
-        }))
+        Some(answer)
+    }
+
+    /// λ̄ of the negligible-query test for one level: its flakes, N·max d_k per unit area;
+    /// infinite when the material skips nothing or the conic is hyperbolic.
+    fn layer_bound(&self, layer: &Layer, footprint: &Footprint, conic: &SphericalConic) -> f64 {
+        layer.negligible_test.map_or(f64::INFINITY, |test| {
+            test.bound(
+                layer.smooth.distribution(),
+                self.parameters.particles,
+                footprint.area() * layer.max_density,
+                conic,
+            )
+        })
+    }
+
+    /// The expected count N·∫_A d·∫p over the conic, summed over the roughness levels.
+    pub(crate) fn expected_count(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        scratch: &mut QueryScratch,
+    ) -> f64 {
+        self.layers
+            .iter()
+            .map(|layer| layer.tree.expected_count(footprint, conic, scratch))
+            .sum()
     }
 
     /// The conic of normals reflecting ω_i into the cone around ω_o (Eq. 8), which normalizes
@@ -395,35 +699,18 @@ impl DiscreteBrdf {
         SphericalConic::with_cone(wi, axis, cone).ok()
     }
 
-    /// f̂ of the corrected Eq. 5 for a cone of solid angle `solid_angle` instead of the
-    /// material's σ(Ω_o): the material's f̂ times σ(Ω_o)/`solid_angle` (exactly f̂ when the two
-    /// are equal, as x·(σ/σ) = x·1 in floating point).
-    pub(crate) fn f_hat_in_cone(
-        &self,
-        wi: DVec3,
-        wo: DVec3,
-        d_hat: DVec3,
-        area: f64,
-        solid_angle: f64,
-    ) -> DVec3 {
-        self.f_hat_from_d_hat(wi, wo, d_hat, area) * (self.cone_solid_angle / solid_angle)
-    }
-
-    /// λ̄ of the negligible-query test for a footprint and conic; infinite when the material
-    /// skips nothing (`negligible_count` = 0) or the conic is hyperbolic.
+    /// λ̄ of the negligible-query test for a footprint and conic, summed over the roughness
+    /// levels; infinite when the material skips nothing (`negligible_count` = 0) or the conic
+    /// is hyperbolic.
     pub(crate) fn expected_count_bound(
         &self,
         footprint: &Footprint,
         conic: &SphericalConic,
     ) -> f64 {
-        self.negligible_test.map_or(f64::INFINITY, |test| {
-            test.bound(
-                self.smooth.distribution(),
-                self.parameters.particles,
-                footprint.area(),
-                conic,
-            )
-        })
+        self.layers
+            .iter()
+            .map(|layer| self.layer_bound(layer, footprint, conic))
+            .sum()
     }
 
     /// The corrected Eq. 5 for unit directions above the horizon, from a D̂ per channel and the
@@ -433,7 +720,14 @@ impl DiscreteBrdf {
     /// ω_o·h = ω_i·h for unit directions, so only the Fresnel term needs |s|: this runs on the
     /// renderer's every evaluation that finds particles, where sqrt and division latencies are
     /// most of its cost.
-    fn f_hat_from_d_hat(&self, wi: DVec3, wo: DVec3, d_hat: DVec3, area: f64) -> DVec3 {
+    fn f_hat_from_d_hat(
+        &self,
+        layer: &Layer,
+        wi: DVec3,
+        wo: DVec3,
+        d_hat: DVec3,
+        area: f64,
+    ) -> DVec3 {
         let s = wi + wo;
         let wi_dot_s = wi.dot(s);
         let valid = s.is_finite() && s.z > 0.0 && wi_dot_s > 0.0 && wi.z > 0.0 && wo.z > 0.0;
@@ -441,11 +735,11 @@ impl DiscreteBrdf {
             return DVec3::ZERO;
         }
         // G = 1/(1 + Λ(ω_i) + Λ(ω_o)) (χ⁺ holds: ω_i·h = ω_o·h > 0 and both above the horizon).
-        let distribution = self.smooth.distribution();
+        let distribution = layer.smooth.distribution();
         let one_plus_lambdas = 1.0 + distribution.lambda(wi) + distribution.lambda(wo);
         let scale =
             wi_dot_s / (one_plus_lambdas * area * self.cone_solid_angle * s.z * wi.z * wo.z);
-        let fresnel = match self.smooth.fresnel() {
+        let fresnel = match layer.smooth.fresnel() {
             Fresnel::None => DVec3::ONE,
             fresnel => fresnel.evaluate(wi_dot_s / s.length()),
         };
@@ -542,7 +836,7 @@ mod tests {
                         let g = distribution.g(wi, wo, h);
                         let textbook = fresnel.evaluate(wi.dot(h)) * d_hat * g * wi.dot(h)
                             / (area * brdf.cone_solid_angle * h.z * wi.z * wo.z);
-                        let fast = brdf.f_hat_from_d_hat(wi, wo, d_hat, area);
+                        let fast = brdf.f_hat_from_d_hat(&brdf.layers[0], wi, wo, d_hat, area);
                         assert!(
                             (fast - textbook).length() <= 1e-12 * textbook.length(),
                             "{wi} {wo}: {fast} vs {textbook}"

@@ -46,6 +46,43 @@ pub enum BrdfError {
     },
     /// The count tree rejected the material.
     Tree(glint_tree::TreeError),
+    /// A density map (or a tint map's channel, or a roughness level's density) was refused.
+    DensityMap(glint_tree::DensityMapError),
+    /// A map's width × height does not match its values (or it has no texel, or too many).
+    InvalidMap {
+        /// `"alpha_map"` or `"tint_map"`.
+        map: &'static str,
+        /// The width given.
+        width: usize,
+        /// The height given.
+        height: usize,
+        /// The number of texel values given.
+        values: usize,
+    },
+    /// A map's texel is outside the map's range: α in [10⁻⁴, 1], tint channels in [0, 1].
+    InvalidMapTexel {
+        /// `"alpha_map"` or `"tint_map"`.
+        map: &'static str,
+        /// The texel's column (0 at u = 0).
+        column: usize,
+        /// The texel's row (0 at the top of the texture).
+        row: usize,
+        /// The rejected value.
+        value: f64,
+    },
+    /// A density map and a roughness map must have the same size (their product is taken
+    /// texel by texel).
+    MapSizesDiffer {
+        /// The density map's width and height.
+        density: (usize, usize),
+        /// The roughness map's width and height.
+        alpha: (usize, usize),
+    },
+    /// Roughness levels must be 1 to 64.
+    InvalidRoughnessLevels {
+        /// The rejected value.
+        levels: usize,
+    },
 }
 
 impl fmt::Display for BrdfError {
@@ -83,6 +120,40 @@ impl fmt::Display for BrdfError {
                 write!(f, "{points} pdf quadrature points requested: use 1 to 4096")
             }
             Self::Tree(error) => write!(f, "count tree: {error}"),
+            Self::DensityMap(error) => write!(f, "density_map: {error}"),
+            Self::InvalidMap {
+                map,
+                width,
+                height,
+                values,
+            } => write!(
+                f,
+                "{map}: {values} values for {width} x {height} texels (a map needs 1 to 2^24 texels)"
+            ),
+            Self::InvalidMapTexel {
+                map,
+                column,
+                row,
+                value,
+            } => {
+                let range = if *map == "alpha_map" {
+                    "[1e-4, 1]"
+                } else {
+                    "[0, 1]"
+                };
+                write!(
+                    f,
+                    "{map}: texel (column {column}, row {row}) is {value:?}: it must be in {range}"
+                )
+            }
+            Self::MapSizesDiffer { density, alpha } => write!(
+                f,
+                "density_map is {} x {} texels and alpha_map {} x {}: they must have the same size",
+                density.0, density.1, alpha.0, alpha.1
+            ),
+            Self::InvalidRoughnessLevels { levels } => {
+                write!(f, "{levels} roughness levels requested: use 1 to 64")
+            }
         }
     }
 }
@@ -91,6 +162,7 @@ impl std::error::Error for BrdfError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             Self::Tree(error) => Some(error),
+            Self::DensityMap(error) => Some(error),
             _ => None,
         }
     }
@@ -99,5 +171,11 @@ impl std::error::Error for BrdfError {
 impl From<glint_tree::TreeError> for BrdfError {
     fn from(error: glint_tree::TreeError) -> Self {
         Self::Tree(error)
+    }
+}
+
+impl From<glint_tree::DensityMapError> for BrdfError {
+    fn from(error: glint_tree::DensityMapError) -> Self {
+        Self::DensityMap(error)
     }
 }

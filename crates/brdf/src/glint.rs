@@ -126,9 +126,10 @@ impl<'a> GlintBxdf<'a> {
             .map(GlintEvaluation::of)
     }
 
-    /// The expected count N·a(A)·∫_{Ω_h} p(m) dm of the query (ω_i, ω_o), from the tree's NDF
-    /// quadrature (Alg. 2): what the count of [`GlintBxdf::evaluate`] averages to over particle
-    /// sets. It costs a traversal of its own; 0 for directions that admit no query.
+    /// The expected count N·a(A)·∫_{Ω_h} p(m) dm of the query (ω_i, ω_o) (N·∫_A d·∫p under a
+    /// density map, summed over roughness levels), from the tree's NDF quadrature (Alg. 2):
+    /// what the count of [`GlintBxdf::evaluate`] averages to over particle sets. It costs a
+    /// traversal of its own; 0 for directions that admit no query.
     #[must_use]
     pub fn expected_count(&self, wi: DVec3, wo: DVec3) -> f64 {
         let Some(conic) = self.brdf.conic(wi, wo) else {
@@ -136,7 +137,6 @@ impl<'a> GlintBxdf<'a> {
         };
         let mut scratch = self.scratch.borrow_mut();
         self.brdf
-            .tree()
             .expected_count(self.footprint, &conic, &mut scratch)
     }
 
@@ -165,31 +165,14 @@ impl<'a> GlintBxdf<'a> {
         let Some(conic) = self.conic_in_cone(wi, axis, half_angle) else {
             return GlintEvaluation::NONE;
         };
-        let bound = self.brdf.expected_count_bound(self.footprint, &conic);
-        if bound < self.brdf.parameters().negligible_count {
-            // As `DiscreteBrdf::query`: skipped, answered 0.
-            return GlintEvaluation {
-                negligible: Some(bound),
-                ..GlintEvaluation::NONE
-            };
-        }
         let mut scratch = self.scratch.borrow_mut();
-        let result = self.brdf.tree().query(self.footprint, &conic, &mut scratch);
-        let d_hat = DVec3::from_array(result.d_hat);
-        GlintEvaluation {
-            f_hat: self.brdf.f_hat_in_cone(
-                conic.wi(),
-                conic.wo(),
-                d_hat,
-                self.footprint.area(),
-                cone_solid_angle(half_angle),
-            ),
-            d_hat,
-            count: result.count,
-            nodes_visited: result.nodes_visited,
-            nodes_overlapping: result.nodes_overlapping,
-            negligible: None,
-        }
+        GlintEvaluation::of(self.brdf.query_conic(
+            &conic,
+            self.footprint,
+            &mut scratch,
+            cone_solid_angle(half_angle),
+            || true,
+        ))
     }
 
     /// The expected count N·a(A)·∫_{Ω_h} p(m) dm of [`GlintBxdf::evaluate_in_cone`]'s query
@@ -201,7 +184,6 @@ impl<'a> GlintBxdf<'a> {
         };
         let mut scratch = self.scratch.borrow_mut();
         self.brdf
-            .tree()
             .expected_count(self.footprint, &conic, &mut scratch)
     }
 
@@ -237,17 +219,21 @@ impl Bxdf for GlintBxdf<'_> {
         self.evaluate(wi, wo).f_hat
     }
 
-    /// ω_o from the glint sampler ([`DiscreteBrdf::sample_direction`]), weighed with f̂: the
-    /// weight f̂·cos θ_o / pdf is the estimate of reflected radiance for unit radiance from ω_o.
+    /// ω_o from the glint sampler at the footprint's centre
+    /// ([`DiscreteBrdf::sample_direction_at`]), weighed with f̂: the weight f̂·cos θ_o / pdf is
+    /// the estimate of reflected radiance for unit radiance from ω_o.
     fn sample(&self, wi: DVec3, u: [f64; 4]) -> Option<BxdfSample> {
         let wi = given(wi);
-        let wo = self.brdf.sample_direction(wi, u)?;
+        let wo = self
+            .brdf
+            .sample_direction_at(wi, u, self.footprint.center())?;
         BxdfSample::weighted(wo, self.eval(wi, wo), self.pdf(wi, wo))
     }
 
-    /// The glint sampler's density ([`DiscreteBrdf::sampling_pdf`]).
+    /// The glint sampler's density at the footprint's centre
+    /// ([`DiscreteBrdf::sampling_pdf_at`]).
     fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
-        self.brdf.sampling_pdf(wi, wo)
+        self.brdf.sampling_pdf_at(wi, wo, self.footprint.center())
     }
 }
 
@@ -314,7 +300,7 @@ mod tests {
                 (seed + 1, 1e-6),
             ] {
                 let rebuilt = original.with_realization(seed, area).expect("a valid area");
-                let mut parameters = *original.parameters();
+                let mut parameters = original.parameters().clone();
                 (parameters.seed, parameters.expected_footprint_area) = (seed, area);
                 let built = DiscreteBrdf::new(parameters).expect("valid parameters");
                 assert_eq!(rebuilt.parameters(), built.parameters());

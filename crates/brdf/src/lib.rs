@@ -59,6 +59,7 @@ mod negligible;
 mod qmc;
 mod slope_pdf;
 pub mod smooth;
+pub mod surface_maps;
 
 pub use bxdf::{Bxdf, BxdfSample};
 pub use discrete::{DiscreteBrdf, GlintParameters};
@@ -68,8 +69,11 @@ pub use fresnel::Fresnel;
 pub use glam::{DVec2, DVec3};
 pub use glint::{GlintBxdf, GlintEvaluation};
 pub use glint_sampling::PdfQuadrature;
-pub use glint_tree::{Footprint, MultinomialMode, QueryScratch, TreeError};
+pub use glint_tree::{
+    DensityMap, DensityMapError, Footprint, MultinomialMode, QueryScratch, TreeError,
+};
 pub use smooth::MicrofacetBrdf;
+pub use surface_maps::{RoughnessMap, TintMap};
 
 /// The README's example, compiled and run as a doctest so that it stays in step with the API.
 #[doc = include_str!("../../../README.md")]

@@ -110,7 +110,7 @@ impl GlintMaterial {
         &self,
         change: impl FnOnce(&mut glint_brdf::GlintParameters),
     ) -> Result<Self, glint_brdf::BrdfError> {
-        let mut parameters = *self.brdf.parameters();
+        let mut parameters = self.brdf.parameters().clone();
         change(&mut parameters);
         Ok(Self {
             brdf: Arc::new(DiscreteBrdf::new(parameters)?),

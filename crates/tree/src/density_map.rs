@@ -274,6 +274,13 @@ impl DensityMap {
         self.fixed.iter().copied().max().unwrap_or(0) as f64 / FIXED_ONE
     }
 
+    /// d of the texel in `column` and `row`, row 0 at the top as given (as stored).
+    #[must_use]
+    pub fn texel(&self, column: usize, row: usize) -> f64 {
+        let j = self.height - 1 - row;
+        self.fixed[j * self.width + column] as f64 / FIXED_ONE
+    }
+
     /// d at texture point `x`, wrapped into the unit square (as stored).
     #[must_use]
     pub fn value_at(&self, x: DVec2) -> f64 {
