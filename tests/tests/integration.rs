@@ -8,6 +8,7 @@ mod footprints;
 mod light_cones;
 mod sphere;
 mod stability;
+mod surface_maps;
 mod tree;
 
 /// Counts heap allocations per thread, so a test can assert that queries allocate nothing.
