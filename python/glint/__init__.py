@@ -123,6 +123,16 @@ class Material:
     sampler pdf's rule over the cone: "cubature", the default, or "qmc", the paper's) and
     ``pdf_points`` (its QMC points, in [1, 4096]).
 
+    Maps vary the material over its texture square (keyword only; NumPy arrays, row 0 at the
+    top of the texture, v from 1 − 1/H to 1, column 0 starting at u = 0, each texel constant
+    and the map tiling with the square): ``density_map`` (H, W), d in [0, 1], N·d flakes per
+    unit area (0 masks: no flake at all); ``alpha_map`` (H, W), the flakes' isotropic α in
+    [1e-4, 1], replacing ``alpha``/``alpha_y`` (the same size as ``density_map`` when both are
+    given); ``tint_map`` (H, W, 3), a colour in [0, 1] scaling the flakes' reflectance (its
+    mean over each footprint); ``roughness_levels`` (K, 8 by default): an ``alpha_map`` with
+    at most K distinct values is exact, one with more is K levels interpolated in log α.
+    A bad texel raises ``ValueError`` naming the map and the texel (column, row).
+
     Invalid parameters raise ``ValueError`` naming the parameter. A material pickles and
     copies (it is rebuilt from its parameters, with the same particle set).
     """
@@ -130,7 +140,8 @@ class Material:
     def __init__(self, distribution="beckmann", alpha=0.1, alpha_y=None, particles=1e6,
                  gamma_deg=None, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
                  negligible_count=0.0, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
-                 pdf_points=64, gamma_degrees=None):
+                 pdf_points=64, gamma_degrees=None, density_map=None, alpha_map=None,
+                 tint_map=None, roughness_levels=8):
         if gamma_deg is not None:
             if gamma_degrees is not None:
                 raise ValueError("give gamma_degrees or gamma_deg (its older name), not both")
@@ -157,18 +168,26 @@ class Material:
             spec["alpha_y"] = _finite("alpha_y", alpha_y)
         if fresnel is not None:
             spec["fresnel"] = _fresnel(fresnel)
-        self._native = _NativeMaterial(json.dumps(spec, allow_nan=False))
+        spec["roughness_levels"] = _finite("roughness_levels", roughness_levels)
+        maps = {
+            "density_map": _map("density_map", density_map, 2),
+            "alpha_map": _map("alpha_map", alpha_map, 2),
+            "tint_map": _map("tint_map", tint_map, 3),
+        }
+        self._native = _NativeMaterial(json.dumps(spec, allow_nan=False), **maps)
         self._spec = spec
+        self._maps = maps
         self.gray = self._native.gray
 
     def __reduce__(self):
         # pickle, copy and deepcopy rebuild the material from its parameters (the native
         # material is not picklable; building it again gives the same particle set).
-        return (_material_from_spec, (dict(self._spec),))
+        return (_material_from_spec, (dict(self._spec), dict(self._maps)))
 
     def __repr__(self):
-        fields = ", ".join(f"{k}={v!r}" for k, v in self._spec.items())
-        return f"glint.Material({fields})"
+        fields = [f"{k}={v!r}" for k, v in self._spec.items()]
+        fields += [f"{k}=<array {v.shape}>" for k, v in self._maps.items() if v is not None]
+        return f"glint.Material({', '.join(fields)})"
 
     def _colour(self, columns, prefix):
         if self.gray:
@@ -232,7 +251,9 @@ class Material:
         """
         wi, single = _rows("wi", wi, 3)
         u, _ = _rows("u", u, None)
-        c = self._native.sample(wi, u)
+        # A material with maps samples at the footprint's centre.
+        at_uv = _rows("uv", uv, 2)[0] if uv is not None and self._has_maps() else None
+        c = self._native.sample(wi, u, at_uv)
         wo = np.stack([c["wo_x"], c["wo_y"], c["wo_z"]], axis=1)
         smooth_weight = self._colour(c, "weight")
         result = {
@@ -265,15 +286,38 @@ class Material:
                                        np.array(c["error"], dtype=str), bad)
         return self._finish(result, single)
 
-    def pdf(self, wi, wo):
-        """The glint sampler's density of ``wo`` for n rows: (n,), NaN on invalid rows."""
+    def pdf(self, wi, wo, uv=None):
+        """The glint sampler's density of ``wo`` for n rows: (n,), NaN on invalid rows. A
+        material with maps samples at texture positions ``uv`` ((n, 2)) when they are given
+        (as ``sample`` with a footprint does), else by its roughness levels' shares."""
         wi, single = _rows("wi", wi, 3)
         wo, _ = _rows("wo", wo, 3)
-        p = self._native.pdf(wi, wo)["pdf"]
+        at_uv = _rows("uv", uv, 2)[0] if uv is not None and self._has_maps() else None
+        p = self._native.pdf(wi, wo, at_uv)["pdf"]
         return p[0] if single else p
 
+    def _has_maps(self):
+        return any(m is not None for m in self._maps.values())
 
-def _material_from_spec(spec):
-    """The material of ``Material.__reduce__``: ``spec`` is its JSON object."""
+
+def _material_from_spec(spec, maps=None):
+    """The material of ``Material.__reduce__``: ``spec`` is its JSON object, ``maps`` its
+    arrays."""
     spec = dict(spec)
-    return Material(**spec)
+    return Material(**spec, **(maps or {}))
+
+
+def _map(name, value, dimensions):
+    """A map argument as a C-ordered float64 array of ``dimensions`` dimensions ((H, W), or
+    (H, W, 3) for a tint), or None; its values are checked by the native material, which names
+    the texel."""
+    if value is None:
+        return None
+    try:
+        array = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"material.{name} must be an array of numbers") from None
+    shape = "(H, W)" if dimensions == 2 else "(H, W, 3)"
+    if array.ndim != dimensions or array.size == 0 or (dimensions == 3 and array.shape[2] != 3):
+        raise ValueError(f"material.{name} must have shape {shape}, not {array.shape}")
+    return array

@@ -20,8 +20,8 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use glint_brdf::QueryScratch;
-use glint_eval::{EvalMaterial, MaterialSpec, uniforms_from_three};
-use numpy::{PyArray1, PyReadonlyArray2};
+use glint_eval::{EvalMaterial, MapSpec, MaterialSpec, uniforms_from_three};
+use numpy::{PyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -52,6 +52,16 @@ fn rows<const K: usize>(array: &PyReadonlyArray2<'_, f64>, name: &str) -> PyResu
         .into_iter()
         .map(|row| std::array::from_fn(|k| row[k]))
         .collect())
+}
+
+/// A map's texels from a NumPy array of shape (H, W) or (H, W, channels), row 0 at the top.
+fn map_spec<D: numpy::ndarray::Dimension>(view: numpy::ndarray::ArrayView<'_, f64, D>) -> MapSpec {
+    let shape = view.shape();
+    MapSpec {
+        width: shape[1],
+        height: shape[0],
+        values: view.iter().copied().collect(),
+    }
 }
 
 fn same_length(n: usize, others: &[(usize, &str)]) -> PyResult<()> {
@@ -207,14 +217,31 @@ fn columns<'py, const K: usize>(
 
 #[pymethods]
 impl Material {
-    /// Builds a material from its `docs/eval.md` JSON object.
+    /// Builds a material from its `docs/eval.md` JSON object and its maps: density and
+    /// roughness of shape (H, W), tint (H, W, 3), row 0 at the top of the texture.
     #[new]
-    fn new(material_json: &str) -> PyResult<Self> {
+    #[pyo3(signature = (material_json, density_map=None, alpha_map=None, tint_map=None))]
+    fn new(
+        material_json: &str,
+        density_map: Option<PyReadonlyArray2<'_, f64>>,
+        alpha_map: Option<PyReadonlyArray2<'_, f64>>,
+        tint_map: Option<PyReadonlyArray3<'_, f64>>,
+    ) -> PyResult<Self> {
         let value: serde_json::Value = serde_json::from_str(material_json)
             .map_err(|e| PyValueError::new_err(format!("invalid material JSON: {e}")))?;
-        let inner = MaterialSpec::from_json(&value)
-            .and_then(|spec| spec.build())
-            .map_err(PyValueError::new_err)?;
+        let mut spec = MaterialSpec::from_json(&value).map_err(PyValueError::new_err)?;
+        spec.maps.density_map = density_map.map(|m| map_spec(m.as_array()));
+        spec.maps.alpha_map = alpha_map.map(|m| map_spec(m.as_array()));
+        if let Some(tint) = &tint_map
+            && tint.shape()[2] != 3
+        {
+            return Err(PyValueError::new_err(format!(
+                "tint_map must have shape (H, W, 3), not {:?}",
+                tint.shape()
+            )));
+        }
+        spec.maps.tint_map = tint_map.map(|m| map_spec(m.as_array()));
+        let inner = spec.build().map_err(PyValueError::new_err)?;
         Ok(Self { inner })
     }
 
@@ -294,14 +321,21 @@ impl Material {
 
     /// The `sample` op over n rows of 3 or 4 uniform numbers: flat columns `wo_x`, `wo_y`,
     /// `wo_z` (NaN where no direction is sampled), `pdf`, `weight_r`, `weight_g`, `weight_b`
-    /// (0 where no direction is sampled) and `error`.
+    /// (0 where no direction is sampled) and `error`. With `uv` (n, 2), a material with maps
+    /// samples at those texture positions.
+    #[pyo3(signature = (wi, u, uv=None))]
     fn sample<'py>(
         &self,
         py: Python<'py>,
         wi: PyReadonlyArray2<'py, f64>,
         u: PyReadonlyArray2<'py, f64>,
+        uv: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let wi = rows::<3>(&wi, "wi")?;
+        let uv = uv.map(|uv| rows::<2>(&uv, "uv")).transpose()?;
+        if let Some(uv) = &uv {
+            same_length(wi.len(), &[(uv.len(), "uv")])?;
+        }
         let u: Vec<Result<[f64; 4], String>> = match u.as_array().ncols() {
             3 => rows::<3>(&u, "u")?
                 .into_iter()
@@ -324,12 +358,14 @@ impl Material {
         let pool = process_pool()?;
         let answers = answer_rows(py, &pool, &indices, |_, &i| {
             let u = u[i].clone()?;
-            Ok(match material.sample(wi[i], u)? {
-                Some(s) => [
-                    s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z,
-                ],
-                None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
-            })
+            Ok(
+                match material.sample(wi[i], u, uv.as_ref().map(|uv| uv[i]))? {
+                    Some(s) => [
+                        s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z,
+                    ],
+                    None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
+                },
+            )
         })?;
         columns(
             py,
@@ -340,20 +376,29 @@ impl Material {
         )
     }
 
-    /// The `pdf` op over n rows: columns `pdf` and `error`.
+    /// The `pdf` op over n rows: columns `pdf` and `error` (at texture positions `uv`, (n, 2),
+    /// when given).
+    #[pyo3(signature = (wi, wo, uv=None))]
     fn pdf<'py>(
         &self,
         py: Python<'py>,
         wi: PyReadonlyArray2<'py, f64>,
         wo: PyReadonlyArray2<'py, f64>,
+        uv: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (wi, wo) = (rows::<3>(&wi, "wi")?, rows::<3>(&wo, "wo")?);
         same_length(wi.len(), &[(wo.len(), "wo")])?;
+        let uv = uv.map(|uv| rows::<2>(&uv, "uv")).transpose()?;
+        if let Some(uv) = &uv {
+            same_length(wi.len(), &[(uv.len(), "uv")])?;
+        }
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
         let pool = process_pool()?;
         let answers = answer_rows(py, &pool, &indices, |_, &i| {
-            material.pdf(wi[i], wo[i]).map(|p| [p])
+            material
+                .pdf(wi[i], wo[i], uv.as_ref().map(|uv| uv[i]))
+                .map(|p| [p])
         })?;
         columns(py, ["pdf"], answers)
     }

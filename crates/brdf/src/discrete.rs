@@ -50,7 +50,7 @@ use glint_tree::{
     expected_conic_solid_angle,
 };
 
-use crate::bxdf::Bxdf;
+use crate::bxdf::{Bxdf, BxdfSample};
 use crate::cone::cone_solid_angle;
 use crate::distribution::{Microfacet, NormalSampling};
 use crate::error::BrdfError;
@@ -501,6 +501,27 @@ impl DiscreteBrdf {
     #[must_use]
     pub fn sampling_pdf_at(&self, wi: DVec3, wo: DVec3, uv: DVec2) -> f64 {
         self.mixture_pdf(wi, wo, Some(uv))
+    }
+
+    /// A direction from the glint sampler weighed with the smooth limit, f·cos θ_o/pdf: the
+    /// sample a path without a footprint takes. At texture position `uv` a material with maps
+    /// samples and weighs the lobes there ([`DiscreteBrdf::sample_direction_at`],
+    /// [`DiscreteBrdf::smooth_at`]); without `uv`, by its levels' shares, with
+    /// [`DiscreteBrdf::smooth`]. `None` when no direction is sampled.
+    #[must_use]
+    pub fn sample_smooth(&self, wi: DVec3, u: [f64; 4], uv: Option<DVec2>) -> Option<BxdfSample> {
+        match uv {
+            Some(uv) => self.sample_direction_at(wi, u, uv).and_then(|wo| {
+                BxdfSample::weighted(
+                    wo,
+                    self.smooth_at(wi, wo, uv),
+                    self.sampling_pdf_at(wi, wo, uv),
+                )
+            }),
+            None => self.sample_direction(wi, u).and_then(|wo| {
+                BxdfSample::weighted(wo, self.smooth().eval(wi, wo), self.sampling_pdf(wi, wo))
+            }),
+        }
     }
 
     /// The levels' sampling weights at `uv` (their flake shares when `uv` is `None` or every

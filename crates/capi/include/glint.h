@@ -147,6 +147,14 @@ typedef struct GlintScratch GlintScratch;
  * | `pdf_quadrature` | `GLINT_PDF_CUBATURE` | a `GlintPdfQuadrature` |
  * | `pdf_points` | 64 | 1 to 4096 |
  * | `negligible_count` | 0 | finite, >= 0 (0 = every query traversed) |
+ * | `density_map`, `_width`, `_height` | NULL, 0, 0 | values in [0, 1], not all 0 |
+ * | `alpha_map`, `_width`, `_height` | NULL, 0, 0 | values in [1e-4, 1] |
+ * | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
+ * | `roughness_levels` | 8 | 1 to 64 |
+ *
+ * A map has width × height ≤ 2^24 texels, row 0 at the top of the texture; it is copied, so
+ * the caller's array may be freed once `glint_material_new` returns. A bad texel is an error
+ * naming the map and the texel (column, row).
  *
  * Every range is glint-brdf's, the same in `cargo xtask eval`, Python and scene files.
  */
@@ -217,6 +225,50 @@ typedef struct GlintMaterialParams {
    * τ: a query whose expected count is provably below τ is answered 0 without a traversal.
    */
   double negligible_count;
+  /**
+   * The density map d(x) in [0, 1] (N·d(x) flakes per unit area; 0 masks): width × height
+   * doubles row by row, row 0 at the top of the texture (v near 1), column 0 at u = 0.
+   * NULL for none. Copied by `glint_material_new`.
+   */
+  const double *density_map;
+  /**
+   * The density map's width in texels (0 without a map).
+   */
+  uint32_t density_map_width;
+  /**
+   * The density map's height in texels (0 without a map).
+   */
+  uint32_t density_map_height;
+  /**
+   * The roughness map α(x) in [1e-4, 1] (isotropic, replacing `alpha_x`/`alpha_y`), laid
+   * out as `density_map`; NULL for none. With a density map it must have its size.
+   */
+  const double *alpha_map;
+  /**
+   * The roughness map's width in texels.
+   */
+  uint32_t alpha_map_width;
+  /**
+   * The roughness map's height in texels.
+   */
+  uint32_t alpha_map_height;
+  /**
+   * The tint map t(x) in [0, 1]^3 scaling the flakes' reflectance: width × height RGB
+   * triples (3 doubles each), laid out as `density_map`; NULL for none.
+   */
+  const double *tint_map;
+  /**
+   * The tint map's width in texels.
+   */
+  uint32_t tint_map_width;
+  /**
+   * The tint map's height in texels.
+   */
+  uint32_t tint_map_height;
+  /**
+   * K, the most roughness levels of a roughness map (exact up to K distinct values).
+   */
+  uint32_t roughness_levels;
 } GlintMaterialParams;
 
 /**
@@ -412,6 +464,21 @@ enum GlintStatus glint_eval_smooth(const struct GlintMaterial *material,
                                    double *f);
 
 /**
+ * The smooth limit of the material at texture position `uv[0..2]` per RGB channel, written
+ * to `f[0..3]`: with maps, the roughness levels' smooth BRDFs weighted by the density there,
+ * times the tint there; without maps, `glint_eval_smooth`'s value.
+ *
+ * # Safety
+ * `material` is NULL or a live material; `wi` and `wo` NULL or 3 readable doubles each; `uv`
+ * NULL or 2 readable doubles; `f` NULL or 3 writable doubles.
+ */
+enum GlintStatus glint_eval_smooth_at(const struct GlintMaterial *material,
+                                      const double *wi,
+                                      const double *wo,
+                                      const double *uv,
+                                      double *f);
+
+/**
  * Samples an outgoing direction for `wi` from four uniform numbers `u[0..4]` in [0, 1): two
  * choose the cone's centre from the widened smooth model, two the direction in the cone of
  * radius γ (Sec. 3.4). `wi` points toward the viewer, the sampled `wo` toward the light.
@@ -445,6 +512,21 @@ enum GlintStatus glint_pdf(const struct GlintMaterial *material,
                            const double *wi,
                            const double *wo,
                            double *pdf);
+
+/**
+ * The density with which `glint_sample` draws `wo` for `wi` with a footprint centred at
+ * `uv[0..2]` (a material with maps samples the lobes of that position; without maps,
+ * `glint_pdf`'s value).
+ *
+ * # Safety
+ * `material` is NULL or a live material; `wi` and `wo` NULL or 3 readable doubles each; `uv`
+ * NULL or 2 readable doubles; `pdf` NULL or writable.
+ */
+enum GlintStatus glint_pdf_at(const struct GlintMaterial *material,
+                              const double *wi,
+                              const double *wo,
+                              const double *uv,
+                              double *pdf);
 
 /**
  * The message of the calling thread's last call: empty after a success, else the function's

@@ -58,9 +58,12 @@ mod types;
 use std::ffi::c_char;
 use std::ptr;
 
+use std::sync::Arc;
+
 use glint_brdf::{
-    Bxdf, BxdfSample, DVec2, DVec3, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintBxdf,
-    GlintParameters, Microfacet, MultinomialMode, PdfQuadrature, QueryScratch, TreeError,
+    BrdfError, Bxdf, BxdfSample, DVec2, DVec3, DensityMap, DiscreteBrdf, DistributionKind,
+    Footprint, Fresnel, GlintBxdf, GlintParameters, Microfacet, MultinomialMode, PdfQuadrature,
+    QueryScratch, RoughnessMap, TintMap, TreeError,
 };
 
 use crate::boundary::{Failure, exclusive, free, guard, non_null, read, read_array, shared, write};
@@ -106,7 +109,11 @@ pub unsafe extern "C" fn glint_material_new(
         unsafe { write(material, ptr::null_mut()) };
         // SAFETY: readable when non-NULL, by the contract.
         let params = unsafe { read(params, "params") }?;
-        let brdf = DiscreteBrdf::new(glint_parameters(&params)?)
+        let mut parameters = glint_parameters(&params)?;
+        // SAFETY: each map pointer is NULL or points to its width × height (× 3) readable
+        // doubles, by `GlintMaterialParams`' contract.
+        unsafe { set_maps(&params, &mut parameters) }?;
+        let brdf = DiscreteBrdf::new(parameters)
             .map_err(|e| Failure::parameter(format!("{}: {e}", field_of(e, &params))))?;
         let handle = Box::into_raw(Box::new(GlintMaterial { brdf }));
         // SAFETY: as above.
@@ -254,6 +261,42 @@ pub unsafe extern "C" fn glint_eval_smooth(
     })
 }
 
+/// The smooth limit of the material at texture position `uv[0..2]` per RGB channel, written
+/// to `f[0..3]`: with maps, the roughness levels' smooth BRDFs weighted by the density there,
+/// times the tint there; without maps, `glint_eval_smooth`'s value.
+///
+/// # Safety
+/// `material` is NULL or a live material; `wi` and `wo` NULL or 3 readable doubles each; `uv`
+/// NULL or 2 readable doubles; `f` NULL or 3 writable doubles.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn glint_eval_smooth_at(
+    material: *const GlintMaterial,
+    wi: *const f64,
+    wo: *const f64,
+    uv: *const f64,
+    f: *mut f64,
+) -> GlintStatus {
+    guard("glint_eval_smooth_at", || {
+        // SAFETY: `material` is NULL or live (this function's contract), as `shared` needs.
+        let material = unsafe { shared(material, "material") }?;
+        // SAFETY: `wi`, `wo`, `uv` are NULL or 3, 3 and 2 readable doubles (the contract).
+        let (wi, wo, uv) = unsafe {
+            (
+                read_array(wi, "wi")?,
+                read_array(wo, "wo")?,
+                read_array::<2>(uv, "uv")?,
+            )
+        };
+        non_null(f, "f")?;
+        let (wi, wo) = (direction(wi, "wi")?, direction(wo, "wo")?);
+        let uv = texture_position(uv)?;
+        let value = material.brdf.smooth_at(wi, wo, uv).to_array();
+        // SAFETY: non-NULL (checked above), 3 writable doubles by the contract.
+        unsafe { write(f.cast::<[f64; 3]>(), value) };
+        Ok(())
+    })
+}
+
 /// Samples an outgoing direction for `wi` from four uniform numbers `u[0..4]` in [0, 1): two
 /// choose the cone's centre from the widened smooth model, two the direction in the cone of
 /// radius γ (Sec. 3.4). `wi` points toward the viewer, the sampled `wo` toward the light.
@@ -301,13 +344,13 @@ pub unsafe extern "C" fn glint_sample(
             )));
         }
         let brdf = &material.brdf;
-        // One direction and pdf, the sampler's; the weights differ by f (f̂ at the footprint).
-        let drawn = brdf.sample_direction(wi, u).and_then(|wo| {
-            BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
-        });
         let footprint = at_footprint
             .map(|(scratch, footprint)| Ok::<_, Failure>((scratch, footprint_from(footprint)?)))
             .transpose()?;
+        // One direction and pdf, the sampler's; the weights differ by f (f̂ at the footprint).
+        // A material with maps samples at the footprint's centre (by its levels' shares, and
+        // with its unmapped smooth limit, without a footprint).
+        let drawn = brdf.sample_smooth(wi, u, footprint.as_ref().map(|(_, f)| f.center()));
         let with_footprint = footprint.map(|(scratch, footprint)| {
             drawn.and_then(|smooth| {
                 let f_hat = scratch.bind(brdf, &footprint, |bxdf| bxdf.eval(wi, smooth.wo));
@@ -376,6 +419,51 @@ pub unsafe extern "C" fn glint_pdf(
     })
 }
 
+/// The density with which `glint_sample` draws `wo` for `wi` with a footprint centred at
+/// `uv[0..2]` (a material with maps samples the lobes of that position; without maps,
+/// `glint_pdf`'s value).
+///
+/// # Safety
+/// `material` is NULL or a live material; `wi` and `wo` NULL or 3 readable doubles each; `uv`
+/// NULL or 2 readable doubles; `pdf` NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn glint_pdf_at(
+    material: *const GlintMaterial,
+    wi: *const f64,
+    wo: *const f64,
+    uv: *const f64,
+    pdf: *mut f64,
+) -> GlintStatus {
+    guard("glint_pdf_at", || {
+        // SAFETY: `material` is NULL or live (this function's contract), as `shared` needs.
+        let material = unsafe { shared(material, "material") }?;
+        // SAFETY: `wi`, `wo`, `uv` are NULL or 3, 3 and 2 readable doubles (the contract).
+        let (wi, wo, uv) = unsafe {
+            (
+                read_array(wi, "wi")?,
+                read_array(wo, "wo")?,
+                read_array::<2>(uv, "uv")?,
+            )
+        };
+        non_null(pdf, "pdf")?;
+        let (wi, wo) = (direction(wi, "wi")?, direction(wo, "wo")?);
+        let density = material.brdf.sampling_pdf_at(wi, wo, texture_position(uv)?);
+        // SAFETY: non-NULL (checked above), writable by the contract.
+        unsafe { write(pdf, density) };
+        Ok(())
+    })
+}
+
+/// A texture position from the caller's 2 doubles: finite.
+fn texture_position(uv: [f64; 2]) -> Result<DVec2, Failure> {
+    let uv = DVec2::from_array(uv);
+    if uv.is_finite() {
+        Ok(uv)
+    } else {
+        Err(Failure::argument(format!("`uv` = {uv} is not finite")))
+    }
+}
+
 /// The message of the calling thread's last call: empty after a success, else the function's
 /// name and what was wrong. Never NULL; valid until this thread's next call of a glint
 /// function (but `glint_last_error` and `glint_version`) or its end.
@@ -413,8 +501,81 @@ impl Default for GlintMaterialParams {
             pdf_quadrature: GlintPdfQuadrature::GLINT_PDF_CUBATURE as u32,
             pdf_points: 64,
             negligible_count: 0.0,
+            density_map: ptr::null(),
+            density_map_width: 0,
+            density_map_height: 0,
+            alpha_map: ptr::null(),
+            alpha_map_width: 0,
+            alpha_map_height: 0,
+            tint_map: ptr::null(),
+            tint_map_width: 0,
+            tint_map_height: 0,
+            roughness_levels: 8,
         }
     }
+}
+
+/// Sets the maps of `p` on `parameters`, copied from the caller's arrays (sizes checked before
+/// anything is read, values by glint-brdf's map types, which name the texel).
+///
+/// # Safety
+/// Each map pointer of `p` is NULL or points to its width × height doubles (× 3 for the tint).
+unsafe fn set_maps(
+    p: &GlintMaterialParams,
+    parameters: &mut GlintParameters,
+) -> Result<(), Failure> {
+    let texels = |name: &str, values: *const f64, width: u32, height: u32, channels: usize| {
+        if values.is_null() {
+            return if width == 0 && height == 0 {
+                Ok(None)
+            } else {
+                Err(Failure::parameter(format!(
+                    "{name} is NULL with a size of {width} x {height}: give the map or a size of 0 x 0"
+                )))
+            };
+        }
+        let texels = width as usize * height as usize;
+        if texels == 0 || texels > DensityMap::MAX_TEXELS {
+            return Err(Failure::parameter(format!(
+                "{name} is {width} x {height} texels: a map needs 1 to 2^24 texels"
+            )));
+        }
+        // SAFETY: non-NULL, and `texels × channels` readable doubles by the contract.
+        let slice = unsafe { std::slice::from_raw_parts(values, texels * channels) };
+        Ok(Some((width as usize, height as usize, slice)))
+    };
+    let refused = |e: BrdfError| Failure::parameter(e.to_string());
+    if let Some((w, h, values)) = texels(
+        "density_map",
+        p.density_map,
+        p.density_map_width,
+        p.density_map_height,
+        1,
+    )? {
+        let map = DensityMap::new(w, h, values).map_err(|e| refused(BrdfError::DensityMap(e)))?;
+        parameters.density_map = Some(Arc::new(map));
+    }
+    if let Some((w, h, values)) = texels(
+        "alpha_map",
+        p.alpha_map,
+        p.alpha_map_width,
+        p.alpha_map_height,
+        1,
+    )? {
+        parameters.alpha_map = Some(Arc::new(RoughnessMap::new(w, h, values).map_err(refused)?));
+    }
+    if let Some((w, h, values)) = texels(
+        "tint_map",
+        p.tint_map,
+        p.tint_map_width,
+        p.tint_map_height,
+        3,
+    )? {
+        let triples: Vec<[f64; 3]> = values.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        parameters.tint_map = Some(Arc::new(TintMap::new(w, h, &triples).map_err(refused)?));
+    }
+    parameters.roughness_levels = p.roughness_levels as usize;
+    Ok(())
 }
 
 /// glint-brdf's parameters from the C struct: the enumerations and N are checked here,
@@ -519,6 +680,8 @@ fn field_of(error: glint_brdf::BrdfError, p: &GlintMaterialParams) -> &'static s
             "expected_footprint_area"
         }
         E::Tree(TreeError::ParticleCountOutOfRange { .. }) => "particles",
+        E::InvalidRoughnessLevels { .. } => "roughness_levels",
+        E::MapSizesDiffer { .. } => "alpha_map",
         _ => "params",
     }
 }

@@ -97,6 +97,14 @@ pub enum GlintPdfQuadrature {
 /// | `pdf_quadrature` | `GLINT_PDF_CUBATURE` | a `GlintPdfQuadrature` |
 /// | `pdf_points` | 64 | 1 to 4096 |
 /// | `negligible_count` | 0 | finite, >= 0 (0 = every query traversed) |
+/// | `density_map`, `_width`, `_height` | NULL, 0, 0 | values in [0, 1], not all 0 |
+/// | `alpha_map`, `_width`, `_height` | NULL, 0, 0 | values in [1e-4, 1] |
+/// | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
+/// | `roughness_levels` | 8 | 1 to 64 |
+///
+/// A map has width × height ≤ 2^24 texels, row 0 at the top of the texture; it is copied, so
+/// the caller's array may be freed once `glint_material_new` returns. A bad texel is an error
+/// naming the map and the texel (column, row).
 ///
 /// Every range is glint-brdf's, the same in `cargo xtask eval`, Python and scene files.
 #[repr(C)]
@@ -136,6 +144,30 @@ pub struct GlintMaterialParams {
     pub pdf_points: u32,
     /// τ: a query whose expected count is provably below τ is answered 0 without a traversal.
     pub negligible_count: f64,
+    /// The density map d(x) in [0, 1] (N·d(x) flakes per unit area; 0 masks): width × height
+    /// doubles row by row, row 0 at the top of the texture (v near 1), column 0 at u = 0.
+    /// NULL for none. Copied by `glint_material_new`.
+    pub density_map: *const f64,
+    /// The density map's width in texels (0 without a map).
+    pub density_map_width: u32,
+    /// The density map's height in texels (0 without a map).
+    pub density_map_height: u32,
+    /// The roughness map α(x) in [1e-4, 1] (isotropic, replacing `alpha_x`/`alpha_y`), laid
+    /// out as `density_map`; NULL for none. With a density map it must have its size.
+    pub alpha_map: *const f64,
+    /// The roughness map's width in texels.
+    pub alpha_map_width: u32,
+    /// The roughness map's height in texels.
+    pub alpha_map_height: u32,
+    /// The tint map t(x) in [0, 1]^3 scaling the flakes' reflectance: width × height RGB
+    /// triples (3 doubles each), laid out as `density_map`; NULL for none.
+    pub tint_map: *const f64,
+    /// The tint map's width in texels.
+    pub tint_map_width: u32,
+    /// The tint map's height in texels.
+    pub tint_map_height: u32,
+    /// K, the most roughness levels of a roughness map (exact up to K distinct values).
+    pub roughness_levels: u32,
 }
 
 /// A pixel's texture-space footprint: the parallelogram

@@ -12,9 +12,9 @@ use std::ptr;
 use glint::{
     GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
     GlintMaterialParams, GlintMultinomial, GlintSample, GlintScratch, GlintStatus, glint_eval,
-    glint_eval_smooth, glint_expected_count, glint_last_error, glint_material_free,
-    glint_material_new, glint_material_params_default, glint_pdf, glint_sample, glint_scratch_free,
-    glint_scratch_new, glint_version,
+    glint_eval_smooth, glint_eval_smooth_at, glint_expected_count, glint_last_error,
+    glint_material_free, glint_material_new, glint_material_params_default, glint_pdf,
+    glint_pdf_at, glint_sample, glint_scratch_free, glint_scratch_new, glint_version,
 };
 use glint_brdf::{
     Bxdf, BxdfSample, DVec2, DVec3, DiscreteBrdf, DistributionKind, Footprint, Fresnel,
@@ -452,7 +452,61 @@ fn defaults_are_glint_parameters_new() {
 #[test]
 fn invalid_parameters_are_named() {
     let defaults = default_params();
+    let bad_density = [1.0, 1.5, 0.0, 0.2];
+    let bad_alpha = [0.1, 0.1, 0.1, 0.0];
+    let bad_tint = [0.5; 12].map(|x| x * 3.0);
     let cases: Vec<(GlintMaterialParams, &str)> = vec![
+        (
+            GlintMaterialParams {
+                density_map: bad_density.as_ptr(),
+                density_map_width: 2,
+                density_map_height: 2,
+                ..defaults
+            },
+            "density_map: texel (column 1, row 0) is 1.5",
+        ),
+        (
+            GlintMaterialParams {
+                alpha_map: bad_alpha.as_ptr(),
+                alpha_map_width: 2,
+                alpha_map_height: 2,
+                ..defaults
+            },
+            "alpha_map: texel (column 1, row 1) is 0.0",
+        ),
+        (
+            GlintMaterialParams {
+                tint_map: bad_tint.as_ptr(),
+                tint_map_width: 2,
+                tint_map_height: 2,
+                ..defaults
+            },
+            "tint_map: texel (column 0, row 0) is 1.5",
+        ),
+        (
+            GlintMaterialParams {
+                density_map_width: 4,
+                density_map_height: 4,
+                ..defaults
+            },
+            "density_map is NULL with a size of 4 x 4",
+        ),
+        (
+            GlintMaterialParams {
+                alpha_map: bad_alpha.as_ptr(),
+                alpha_map_width: 1 << 13,
+                alpha_map_height: 1 << 12,
+                ..defaults
+            },
+            "alpha_map is 8192 x 4096 texels",
+        ),
+        (
+            GlintMaterialParams {
+                roughness_levels: 0,
+                ..defaults
+            },
+            "roughness_levels",
+        ),
         (
             GlintMaterialParams {
                 distribution: 7,
@@ -1013,8 +1067,45 @@ fn version_is_the_package_version() {
 /// accepted ranges (η, k at their limits, a footprint edge at ±1e15).
 #[test]
 fn answers_are_glint_evals_bit_for_bit() {
-    use glint_eval::{FresnelSpec, MaterialSpec};
+    use glint_eval::{FresnelSpec, MapSpec, MapsSpec, MaterialSpec};
+    // A material with every map (3 × 2 texels; 6 distinct α over K = 4 levels interpolate).
+    let densities = [1.0, 0.5, 0.0, 0.25, 0.75, 1.0];
+    let alphas = [0.05, 0.1, 0.2, 0.3, 0.4, 0.5];
+    let tints = [
+        0.9, 0.5, 0.2, 0.1, 0.8, 0.3, 1.0, 1.0, 1.0, 0.4, 0.4, 0.9, 0.0, 0.6, 0.3, 0.7, 0.2, 0.5,
+    ];
+    let spec_map = |values: &[f64]| MapSpec {
+        width: 3,
+        height: 2,
+        values: values.to_vec(),
+    };
+    let mapped = (
+        GlintMaterialParams {
+            density_map: densities.as_ptr(),
+            density_map_width: 3,
+            density_map_height: 2,
+            alpha_map: alphas.as_ptr(),
+            alpha_map_width: 3,
+            alpha_map_height: 2,
+            tint_map: tints.as_ptr(),
+            tint_map_width: 3,
+            tint_map_height: 2,
+            roughness_levels: 4,
+            particles: 1e8,
+            ..default_params()
+        },
+        MaterialSpec {
+            maps: MapsSpec {
+                density_map: Some(spec_map(&densities)),
+                alpha_map: Some(spec_map(&alphas)),
+                tint_map: Some(spec_map(&tints)),
+                roughness_levels: Some(4.0),
+            },
+            ..MaterialSpec::new("beckmann", 0.1, 1e8, 1.0)
+        },
+    );
     let materials = [
+        mapped,
         (
             default_params(),
             MaterialSpec::new("beckmann", 0.1, 1e6, 1.0),
@@ -1079,8 +1170,21 @@ fn answers_are_glint_evals_bit_for_bit() {
                     );
                     unchanged += usize::from(c.count > 0.0);
                 }
+                // With a footprint, a material with maps samples at its centre.
+                let s = handles.sample(Some(&PINNED_FOOTPRINT), wi, [0.3, 0.6, 0.2, 0.9]);
+                let e = material
+                    .sample(wi, [0.3, 0.6, 0.2, 0.9], Some(PINNED_FOOTPRINT.uv))
+                    .unwrap();
+                match e {
+                    Some(e) => {
+                        assert_eq!(bits(&s.wo), bits(&e.wo.to_array()));
+                        assert_eq!(s.pdf.to_bits(), e.pdf.to_bits());
+                        assert_eq!(bits(&s.smooth_weight), bits(&e.weight.to_array()));
+                    }
+                    None => assert_eq!(s.valid, 0),
+                }
                 let s = handles.sample(None, wi, [0.3, 0.6, 0.2, 0.9]);
-                let e = material.sample(wi, [0.3, 0.6, 0.2, 0.9]).unwrap();
+                let e = material.sample(wi, [0.3, 0.6, 0.2, 0.9], None).unwrap();
                 match e {
                     Some(e) => {
                         assert_eq!(bits(&s.wo), bits(&e.wo.to_array()));
@@ -1094,7 +1198,38 @@ fn answers_are_glint_evals_bit_for_bit() {
                 let status =
                     unsafe { glint_pdf(handles.material, wi.as_ptr(), wo.as_ptr(), &mut pdf) };
                 assert_eq!(status, GLINT_OK);
-                assert_eq!(pdf.to_bits(), material.pdf(wi, wo).unwrap().to_bits());
+                assert_eq!(pdf.to_bits(), material.pdf(wi, wo, None).unwrap().to_bits());
+                let (mut pdf_at, mut smooth_at) = (f64::NAN, [f64::NAN; 3]);
+                let uv = PINNED_FOOTPRINT.uv;
+                // SAFETY: a live material, readable arrays, writable doubles.
+                let statuses = unsafe {
+                    [
+                        glint_pdf_at(
+                            handles.material,
+                            wi.as_ptr(),
+                            wo.as_ptr(),
+                            uv.as_ptr(),
+                            &mut pdf_at,
+                        ),
+                        glint_eval_smooth_at(
+                            handles.material,
+                            wi.as_ptr(),
+                            wo.as_ptr(),
+                            uv.as_ptr(),
+                            smooth_at.as_mut_ptr(),
+                        ),
+                    ]
+                };
+                assert_eq!(statuses, [GLINT_OK; 2]);
+                assert_eq!(
+                    pdf_at.to_bits(),
+                    material.pdf(wi, wo, Some(uv)).unwrap().to_bits()
+                );
+                let footprint = PINNED_FOOTPRINT;
+                let e = material
+                    .eval(&mut scratch, wi, wo, uv, footprint.duv_dx, footprint.duv_dy)
+                    .unwrap();
+                assert_eq!(bits(&smooth_at), bits(&e.f_smooth.to_array()));
             }
         }
     }

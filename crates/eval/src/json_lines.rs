@@ -127,15 +127,29 @@ impl JsonLines {
                     numbers::<4>(request, "u")
                         .map_err(|e| format!("{e} (or 3 in the original form), each in [0, 1)"))?
                 };
-                Ok(match material.sample(wi, u)? {
+                let uv = optional_uv(request)?;
+                Ok(match material.sample(wi, u, uv)? {
                     Some(s) => {
                         json!({ "wo": [s.wo.x, s.wo.y, s.wo.z], "pdf": s.pdf, "weight": colour(s.weight) })
                     }
                     None => json!({ "wo": null }),
                 })
             }
-            _ => Ok(json!({ "pdf": material.pdf(wi, numbers::<3>(request, "wo")?)? })),
+            _ => {
+                let wo = numbers::<3>(request, "wo")?;
+                Ok(json!({ "pdf": material.pdf(wi, wo, optional_uv(request)?)? }))
+            }
         }
+    }
+}
+
+/// The request's `uv`, where a `sample` or `pdf` request gives one (the texture position a
+/// material with maps samples at).
+fn optional_uv(request: &Map<String, Value>) -> Result<Option<[f64; 2]>, String> {
+    if request.contains_key("uv") {
+        numbers::<2>(request, "uv").map(Some)
+    } else {
+        Ok(None)
     }
 }
 

@@ -32,9 +32,11 @@
 #![deny(missing_docs)]
 
 mod json_lines;
+mod maps;
 mod material;
 mod request;
 
 pub use json_lines::{JsonLines, MATERIAL_CACHE_BYTES, MATERIAL_CACHE_SIZE};
+pub use maps::{MapSpec, MapsSpec};
 pub use material::{FresnelSpec, MaterialSpec};
 pub use request::{EvalAnswer, EvalMaterial, SampleAnswer, split_uniform, uniforms_from_three};

@@ -7,6 +7,7 @@ use glint_brdf::{
 };
 use serde_json::{Map, Value};
 
+use crate::maps::{MAP_FIELDS, MapsSpec};
 use crate::request::EvalMaterial;
 
 /// A material's Fresnel term as `docs/eval.md` writes it.
@@ -59,10 +60,16 @@ pub struct MaterialSpec {
     pub pdf_points: Option<f64>,
     /// Skip queries whose expected count is provably below this; defaults to 0.
     pub negligible_count: Option<f64>,
+    /// Density, roughness and tint maps over the texture square; none by default.
+    pub maps: MapsSpec,
 }
 
 /// The fields a JSON material may hold.
-const KNOWN_FIELDS: [&str; 14] = [
+const KNOWN_FIELDS: [&str; 18] = [
+    MAP_FIELDS[0],
+    MAP_FIELDS[1],
+    MAP_FIELDS[2],
+    MAP_FIELDS[3],
     "distribution",
     "alpha",
     "alpha_y",
@@ -97,6 +104,7 @@ impl MaterialSpec {
             pdf_quadrature: None,
             pdf_points: None,
             negligible_count: None,
+            maps: MapsSpec::default(),
         }
     }
 
@@ -199,6 +207,7 @@ impl MaterialSpec {
             }
             other => format!("material: {other}"),
         })?;
+        self.maps.apply(&mut parameters)?;
         Ok(parameters)
     }
 
@@ -254,6 +263,7 @@ impl MaterialSpec {
             pdf_quadrature,
             pdf_points: optional_number(m, "pdf_points", "material.pdf_points")?,
             negligible_count: optional_number(m, "negligible_count", "material.negligible_count")?,
+            maps: MapsSpec::from_json(m)?,
         })
     }
 }

@@ -3,7 +3,7 @@
 //! direction below the horizon is valid and gives zeros), footprints must be finite with edges
 //! within ±10¹⁵, uniform numbers lie in [0, 1).
 
-use glint_brdf::{Bxdf, BxdfSample, DVec2, DVec3, DiscreteBrdf, Footprint, QueryScratch};
+use glint_brdf::{DVec2, DVec3, DiscreteBrdf, Footprint, QueryScratch};
 
 /// A built material with what its answers need.
 #[derive(Clone, Debug)]
@@ -87,7 +87,7 @@ impl EvalMaterial {
             expected_count: bxdf.expected_count(wi, wo),
             d_hat: e.d_hat.x,
             f_hat: e.f_hat,
-            f_smooth: self.brdf.smooth().eval(wi, wo),
+            f_smooth: self.brdf.smooth_at(wi, wo, footprint.center()),
             nodes_visited: e.nodes_visited,
             negligible_bound: e.negligible,
         })
@@ -95,33 +95,39 @@ impl EvalMaterial {
 
     /// The `sample` request with the glint sampler's four uniform numbers (see
     /// [`uniforms_from_three`] for the three-number form): `None` when no direction is sampled.
+    /// A material with maps samples, and weighs with its smooth limit, at texture position
+    /// `uv` (without `uv`, by its levels' shares, and unmapped smooth weights).
     ///
     /// # Errors
-    /// A message naming the invalid input (`wi`, `u`).
-    pub fn sample(&self, wi: [f64; 3], u: [f64; 4]) -> Result<Option<SampleAnswer>, String> {
+    /// A message naming the invalid input (`wi`, `u`, `uv`).
+    pub fn sample(
+        &self,
+        wi: [f64; 3],
+        u: [f64; 4],
+        uv: Option<[f64; 2]>,
+    ) -> Result<Option<SampleAnswer>, String> {
         let wi = direction(wi, "wi")?;
         check_uniforms(&u)?;
-        let brdf = &self.brdf;
-        Ok(brdf
-            .sample_direction(wi, u)
-            .and_then(|wo| {
-                BxdfSample::weighted(wo, brdf.smooth().eval(wi, wo), brdf.sampling_pdf(wi, wo))
-            })
-            .map(|s| SampleAnswer {
-                wo: s.wo,
-                pdf: s.pdf,
-                weight: s.weight,
-            }))
+        let uv = uv.map(|uv| vector2(uv, "uv")).transpose()?;
+        let sampled = self.brdf.sample_smooth(wi, u, uv);
+        Ok(sampled.map(|s| SampleAnswer {
+            wo: s.wo,
+            pdf: s.pdf,
+            weight: s.weight,
+        }))
     }
 
-    /// The `pdf` request: the glint sampler's density.
+    /// The `pdf` request: the glint sampler's density (at texture position `uv` for a material
+    /// with maps, as [`EvalMaterial::sample`]).
     ///
     /// # Errors
-    /// A message naming the invalid direction.
-    pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3]) -> Result<f64, String> {
-        Ok(self
-            .brdf
-            .sampling_pdf(direction(wi, "wi")?, direction(wo, "wo")?))
+    /// A message naming the invalid direction or `uv`.
+    pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3], uv: Option<[f64; 2]>) -> Result<f64, String> {
+        let (wi, wo) = (direction(wi, "wi")?, direction(wo, "wo")?);
+        Ok(match uv {
+            Some(uv) => self.brdf.sampling_pdf_at(wi, wo, vector2(uv, "uv")?),
+            None => self.brdf.sampling_pdf(wi, wo),
+        })
     }
 }
 
