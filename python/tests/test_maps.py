@@ -1,0 +1,108 @@
+"""Density, roughness and tint maps from Python: the same answers as `cargo xtask eval` with
+the maps as JSON rows (bit for bit), the layout (row 0 at the top of the texture), bad texels
+named, and materials with maps that pickle."""
+
+import json
+import pickle
+
+import numpy as np
+import pytest
+
+import glint
+from test_glint import _queries, _same, _xtask_eval
+
+# 4 × 3 texels (H = 3 rows, W = 4 columns): a masked texel, seven roughness values over
+# K = 4 levels, a tint.
+DENSITY = np.array([[1.0, 0.5, 0.0, 0.25],
+                    [0.75, 1.0, 0.6, 0.3],
+                    [0.2, 0.9, 1.0, 0.4]])
+ALPHA = np.array([[0.05, 0.1, 0.2, 0.3],
+                  [0.4, 0.05, 0.1, 0.2],
+                  [0.3, 0.4, 0.5, 0.05]])
+TINT = np.stack([np.linspace(0.2, 1.0, 12).reshape(3, 4),
+                 np.full((3, 4), 0.6),
+                 np.linspace(1.0, 0.1, 12).reshape(3, 4)], axis=2)
+KWARGS = dict(distribution="beckmann", alpha=0.1, particles=1e8, gamma_degrees=2.0, seed=5,
+              roughness_levels=4)
+
+
+def _material():
+    return glint.Material(**KWARGS, density_map=DENSITY, alpha_map=ALPHA, tint_map=TINT)
+
+
+def test_maps_match_json_lines_bit_for_bit():
+    m = _material()
+    spec = dict(KWARGS, density_map=DENSITY.tolist(), alpha_map=ALPHA.tolist(),
+                tint_map=TINT.tolist())
+    wi, wo, uv, dx, dy, u = _queries(60, seed=11)
+    dx, dy = dx * 0.2, dy * 0.2
+    lines = []
+    for i in range(len(wi)):
+        common = {"material": spec, "wi": wi[i].tolist()}
+        lines.append(json.dumps({"op": "eval", **common, "wo": wo[i].tolist(),
+                                 "uv": uv[i].tolist(), "duv_dx": dx[i].tolist(),
+                                 "duv_dy": dy[i].tolist()}))
+        lines.append(json.dumps({"op": "sample", **common, "u": u[i].tolist(),
+                                 "uv": uv[i].tolist()}))
+        lines.append(json.dumps({"op": "pdf", **common, "wo": wo[i].tolist(),
+                                 "uv": uv[i].tolist()}))
+    answers = _xtask_eval(lines)
+    r = m.eval(wi, wo, uv, dx, dy)
+    s = m.sample(wi, u, uv, dx, dy)
+    p = m.pdf(wi, wo, uv)
+    found = 0
+    for i in range(len(wi)):
+        e, a, ap = answers[3 * i: 3 * i + 3]
+        assert "error" not in e, e
+        for key in ("count", "expected_count", "d_hat", "f_hat", "f_smooth", "nodes_visited"):
+            assert _same(r[key][i], e[key]), (i, key, r[key][i], e[key])
+        if a["wo"] is None:
+            assert s["pdf"][i] == 0
+        else:
+            assert _same(s["wo"][i], a["wo"]) and _same(s["pdf"][i], a["pdf"])
+            assert _same(s["smooth_weight"][i], a["weight"])
+        assert _same(p[i], ap["pdf"])
+        found += r["count"][i] > 0
+    assert found > 0
+
+
+def test_row_zero_is_the_top_of_the_texture():
+    """A density map whose top row alone is 1: footprints in the top third of the square
+    find flakes, those in the bottom two thirds none, even with a wide cone."""
+    density = np.zeros((3, 2))
+    density[0] = 1.0
+    m = glint.Material(alpha=0.5, particles=1e7, gamma_degrees=40.0, epsilon=0.0,
+                       density_map=density)
+    wi = np.array([[0.0, 0.0, 1.0]] * 2)
+    wo = np.array([[0.1, 0.0, 1.0]] * 2)
+    uv = np.array([[0.3, 0.9], [0.3, 0.4]])
+    edge = np.array([[0.05, 0.0]] * 2), np.array([[0.0, 0.05]] * 2)
+    r = m.eval(wi, wo, uv, *edge)
+    assert r["count"][0] > 0 and r["count"][1] == 0, r["count"]
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(density_map=np.array([[1.0, 1.5]])), "density_map: texel (column 1, row 0) is 1.5"),
+    (dict(density_map=np.array([[1.0, np.nan]])), "density_map: texel (column 1, row 0)"),
+    (dict(alpha_map=np.array([[0.1], [0.0]])), "alpha_map: texel (column 0, row 1)"),
+    (dict(tint_map=np.full((1, 2, 3), 2.0)), "tint_map: texel (column 0, row 0)"),
+    (dict(tint_map=np.ones((2, 2))), "tint_map must have shape (H, W, 3)"),
+    (dict(density_map=np.ones(3)), "density_map must have shape (H, W)"),
+    (dict(density_map=[["a"]]), "density_map must be an array of numbers"),
+    (dict(density_map=np.zeros((2, 2))), "density_map: every texel is 0"),
+    (dict(density_map=np.ones((2, 2)), alpha_map=np.full((2, 3), 0.1)), "the same size"),
+    (dict(roughness_levels=0), "roughness_levels"),
+])
+def test_bad_maps_raise_value_error_naming_the_map_and_texel(kwargs, message):
+    with pytest.raises(ValueError, match=None) as error:
+        glint.Material(**kwargs)
+    assert message in str(error.value), str(error.value)
+
+
+def test_materials_with_maps_pickle():
+    m = _material()
+    copy = pickle.loads(pickle.dumps(m))
+    wi, wo, uv, dx, dy, _ = _queries(30, seed=2)
+    a, b = m.eval(wi, wo, uv, dx, dy), copy.eval(wi, wo, uv, dx, dy)
+    assert _same(a["f_hat"], b["f_hat"]) and _same(a["count"], b["count"])
+    assert "density_map=<array (3, 4)>" in repr(m)
