@@ -14,6 +14,8 @@
 pub mod counts;
 pub mod geometry;
 pub mod light_cones;
+#[cfg(feature = "checkers")]
+pub mod maps;
 pub mod mirror_check;
 #[cfg(feature = "checkers")]
 pub mod sampling;

@@ -3,53 +3,15 @@
 //! straddling texel edges and tiles; texels where d = 0 hold nothing; exact counts stay
 //! additive; a map of ones is no map, bit for bit; overlapping queries agree in any order.
 
-use std::f64::consts::PI;
 use std::sync::Arc;
 
 use glam::DVec2;
-use glint_sphere::SphericalConic;
 use glint_tests::SplitMix64;
-use glint_tests::counts::{beckmann_density, conic_integral_by_sampling, queries_in_threads};
-use glint_tests::geometry::direction;
+use glint_tests::counts::{beckmann_density, queries_in_threads};
+use glint_tests::maps::{
+    checkerboard, disc, mapped_count_sums, square_mass, test_conic, test_maps,
+};
 use glint_tree::{CountTree, CountTreeConfig, DensityMap, Footprint, QueryScratch};
-
-fn conic(gamma_deg: f64) -> SphericalConic {
-    SphericalConic::new(
-        direction(0.3, 0.2),
-        direction(0.25, 0.2 + PI),
-        gamma_deg.to_radians(),
-    )
-    .unwrap()
-}
-
-/// An 8 × 8 checkerboard of 0.2 and 1, a 37 × 23 gradient in u (non-power-of-two texels
-/// that no dyadic box edge matches), and a mask: a disc of ones in zeros, 16 × 16.
-fn maps() -> Vec<(&'static str, usize, usize, Vec<f64>)> {
-    let checker = (0..64)
-        .map(|k| if (k % 8 + k / 8) % 2 == 0 { 0.2 } else { 1.0 })
-        .collect();
-    let gradient = (0..37 * 23).map(|k| (k % 37) as f64 / 36.0).collect();
-    vec![
-        ("checkerboard", 8, 8, checker),
-        ("gradient", 37, 23, gradient),
-        ("disc", 16, 16, disc(16)),
-    ]
-}
-
-/// An n × n map of ones inside a disc of radius 0.34 and zeros outside.
-fn disc(n: usize) -> Vec<f64> {
-    (0..n * n)
-        .map(|k| {
-            let centre = 0.5 * (n as f64 - 1.0);
-            let (x, y) = ((k % n) as f64 - centre, (k / n) as f64 - centre);
-            if (x * x + y * y).sqrt() < 0.34 * n as f64 {
-                1.0
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
 
 fn tree(particles: u64, epsilon: f64, seed: u64, map: Option<DensityMap>) -> CountTree {
     let config = CountTreeConfig {
@@ -59,33 +21,6 @@ fn tree(particles: u64, epsilon: f64, seed: u64, map: Option<DensityMap>) -> Cou
         ..CountTreeConfig::default()
     };
     CountTree::with_density_map(config, beckmann_density(0.2, 0.2), map.map(Arc::new)).unwrap()
-}
-
-/// ∫d over an axis-aligned square footprint, wrapped across tiles, texel by texel from the
-/// values as given (row 0 at the top), independently of the map's own tables.
-fn square_mass(values: &[f64], (w, h): (usize, usize), centre: DVec2, side: f64) -> f64 {
-    let (x0, y0) = (centre.x - 0.5 * side, centre.y - 0.5 * side);
-    let mut mass = 0.0;
-    for tile_x in -1..=1 {
-        for tile_y in -1..=1 {
-            for j in 0..h {
-                for i in 0..w {
-                    let cx = [
-                        (i as f64 / w as f64) + tile_x as f64,
-                        ((i + 1) as f64 / w as f64) + tile_x as f64,
-                    ];
-                    let cy = [
-                        (j as f64 / h as f64) + tile_y as f64,
-                        ((j + 1) as f64 / h as f64) + tile_y as f64,
-                    ];
-                    let ox = (cx[1].min(x0 + side) - cx[0].max(x0)).max(0.0);
-                    let oy = (cy[1].min(y0 + side) - cy[0].max(y0)).max(0.0);
-                    mass += values[(h - 1 - j) * w + i] * ox * oy;
-                }
-            }
-        }
-    }
-    mass
 }
 
 /// Over 2000 footprints of side 1.3 texels at random positions (straddling texel edges and,
@@ -99,63 +34,36 @@ fn square_mass(values: &[f64], (w, h): (usize, usize), centre: DVec2, side: f64)
 /// 64 × 64 texels: leaves span 4 × 4 texels and place their particles by the map).
 #[test]
 fn counts_follow_the_map_binomially() {
-    let sparse_checker: Vec<f64> = (0..64 * 64)
-        .map(|k| if (k % 64 + k / 64) % 2 == 0 { 0.2 } else { 1.0 })
-        .collect();
-    let cases = maps()
+    let cases = test_maps()
         .into_iter()
         .map(|(name, w, h, values)| (name, w, h, values, 2_000_000, 6.0))
-        .chain([("sparse checkerboard", 64, 64, sparse_checker, 10_000, 40.0)]);
-    let (sets, per_set) = (20, 100);
+        .chain([(
+            "sparse checkerboard",
+            64,
+            64,
+            checkerboard(64),
+            10_000,
+            40.0,
+        )]);
     for (name, w, h, values, particles, gamma) in cases {
-        let conic = conic(gamma);
-        let (integral, integral_error) = conic_integral_by_sampling(
-            beckmann_density(0.2, 0.2).as_ref(),
-            &conic,
-            400_000,
-            &mut SplitMix64::new(4),
-        );
-        let map = DensityMap::new(w, h, &values).unwrap();
         for epsilon in [0.0, 0.1] {
-            let side = 1.3 / w.max(h) as f64;
-            let mut rng = SplitMix64::new(17);
-            let mut scratch = QueryScratch::new();
-            // [counts, means, squares, variances] over footprints of mean density ≥ ½ and < ½.
-            let mut sums = [[0.0f64; 4]; 2];
-            for seed in 0..sets {
-                let tree = tree(particles, epsilon, seed, Some(map.clone()));
-                for _ in 0..per_set {
-                    let centre = DVec2::new(rng.uniform(), rng.uniform());
-                    let footprint =
-                        Footprint::new(centre, DVec2::new(side, 0.0), DVec2::new(0.0, side))
-                            .unwrap();
-                    let count = tree.query(&footprint, &conic, &mut scratch).count;
-                    let mass = square_mass(&values, (w, h), centre, side);
-                    let q = mass * integral;
-                    let mean = particles as f64 * q;
-                    let sum = &mut sums[usize::from(mass < 0.5 * side * side)];
-                    sum[0] += count;
-                    sum[1] += mean;
-                    sum[2] += (count - mean).powi(2);
-                    sum[3] += mean * (1.0 - q);
-                }
-            }
-            for (half, [counts, means, squares, variances]) in ["dense", "light"].iter().zip(sums) {
-                if means == 0.0 {
+            let sums = mapped_count_sums((w, h, &values), particles, gamma, epsilon, (20, 100));
+            for (half, sums) in ["dense", "light"].iter().zip(sums) {
+                if sums.means == 0.0 {
                     continue;
                 }
-                let realization = means * side * side * per_set as f64;
-                let error = (variances + realization).sqrt() + means * integral_error / integral;
                 assert!(
-                    (counts - means).abs() < 5.0 * error,
-                    "{name}, ε {epsilon}, {half} footprints: Σ counts {counts} against Σ N·∫d·∫p \
-                     {means} ± {error}"
+                    sums.z().abs() < 5.0,
+                    "{name}, ε {epsilon}, {half} footprints: Σ counts {} against Σ N·∫d·∫p {} ± {}",
+                    sums.counts,
+                    sums.means,
+                    sums.error
                 );
                 if epsilon == 0.0 {
-                    let dispersion = squares / variances;
                     assert!(
-                        (dispersion - 1.0).abs() < 0.25,
-                        "{name}, {half}: Σ(count − mean)² / Σ mean(1 − q) = {dispersion}"
+                        (sums.dispersion() - 1.0).abs() < 0.25,
+                        "{name}, {half}: Σ(count − mean)² / Σ mean(1 − q) = {}",
+                        sums.dispersion()
                     );
                 }
             }
@@ -176,7 +84,7 @@ fn masked_texels_hold_no_particle() {
 fn masked_texels_hold_none_of(particles: u64, w: usize, h: usize, values: &[f64]) {
     let map = DensityMap::new(w, h, values).unwrap();
     let tree = tree(particles, 0.0, 5, Some(map.clone()));
-    let wide = conic(170.0);
+    let wide = test_conic(170.0);
     let mut scratch = QueryScratch::new();
     let mut rng = SplitMix64::new(8);
     let mut zero_footprints = 0;
@@ -209,8 +117,8 @@ fn masked_texels_hold_none_of(particles: u64, w: usize, h: usize, values: &[f64]
 /// what the whole does.
 #[test]
 fn exact_counts_under_a_map_are_additive() {
-    let conic = conic(5.0);
-    for (name, w, h, values) in maps() {
+    let conic = test_conic(5.0);
+    for (name, w, h, values) in test_maps() {
         let tree = tree(
             50_000_000,
             0.0,
@@ -266,7 +174,7 @@ fn a_map_of_ones_is_no_map_bit_for_bit() {
                 DVec2::new(-0.2 * side, side),
             )
             .unwrap();
-            let conic = conic(2.0 + 10.0 * rng.uniform());
+            let conic = test_conic(2.0 + 10.0 * rng.uniform());
             assert_eq!(
                 plain.query(&footprint, &conic, &mut a),
                 mapped.query(&footprint, &conic, &mut b),
@@ -281,14 +189,14 @@ fn a_map_of_ones_is_no_map_bit_for_bit() {
 /// for bit, and so do four threads.
 #[test]
 fn mapped_queries_are_the_same_in_any_order_and_thread() {
-    let (_, w, h, values) = maps().remove(1);
+    let (_, w, h, values) = test_maps().remove(1);
     let tree = tree(
         10_000_000,
         0.1,
         6,
         Some(DensityMap::new(w, h, &values).unwrap()),
     );
-    let conic = conic(3.0);
+    let conic = test_conic(3.0);
     let mut rng = SplitMix64::new(12);
     let footprints: Vec<Footprint> = (0..400)
         .map(|_| {

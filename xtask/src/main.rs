@@ -44,6 +44,8 @@ mod validate_footprints;
 #[cfg(feature = "full")]
 mod validate_light_cones;
 #[cfg(feature = "full")]
+mod validate_maps;
+#[cfg(feature = "full")]
 mod validate_pdf;
 #[cfg(feature = "full")]
 mod validate_render;

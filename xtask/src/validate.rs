@@ -4,7 +4,8 @@
 //! `validate_counts.rs`), **BRDF** (glint-brdf, in `validate_brdf.rs`), **stability** (the
 //! extremes matrix, `validate_stability.rs`) and **trade** (speed against accuracy, with a
 //! Pareto plot, `validate_trade.rs`) and **renders** (images against the smooth limit and
-//! against exact evaluation, `validate_render.rs`). Each check prints one line and adds a section to
+//! against exact evaluation, `validate_render.rs`) and **maps** (counts under density maps and
+//! the roughness levels' trade, `validate_maps.rs`). Each check prints one line and adds a section to
 //! `report.md`; the command fails if any check fails.
 
 use std::fmt::Write as _;
@@ -69,7 +70,7 @@ pub(crate) fn run(quick: bool, out: &Path, only: Option<&str>) -> anyhow::Result
         "# glint validation report\n\nMode: {}. Suites: {}.\n",
         if quick { "quick" } else { "full" },
         only.map_or_else(
-            || "geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade, renders".to_owned(),
+            || "geometry (glint-sphere), counts (glint-tree), BRDF (glint-brdf), stability, trade, renders, maps".to_owned(),
             |only| format!("only the checks whose name contains {only:?}"),
         )
     )?;
@@ -141,6 +142,14 @@ pub(crate) fn run(quick: bool, out: &Path, only: Option<&str>) -> anyhow::Result
         (
             "renders: footprints in mirrors and glossy reflectors",
             Box::new(|r| crate::validate_footprints::footprints(quick, r)),
+        ),
+        (
+            "maps: counts",
+            Box::new(|r| crate::validate_maps::counts(quick, r)),
+        ),
+        (
+            "trade: roughness levels",
+            Box::new(|r| crate::validate_maps::roughness_levels(quick, r)),
         ),
     ];
     let suites: Vec<(&str, Suite)> = suites
