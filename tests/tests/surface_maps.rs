@@ -318,3 +318,45 @@ fn bad_maps_are_refused_naming_the_texel() {
         "{message}"
     );
 }
+
+/// Under maps the negligible-query bound uses the largest density over the footprint: it
+/// stays above the expected count N·∫_A d·∫p of every level, and a footprint in a masked
+/// region is skipped without a traversal.
+#[test]
+fn the_negligible_bound_uses_the_density_over_the_footprint() {
+    let (alphas, densities) = striped_maps();
+    let mut masked = densities.clone();
+    masked[0] = 0.0;
+    masked[1] = 0.0;
+    let mut parameters = GlintParameters::new(beckmann(0.2));
+    parameters.particles = 1_000_000_000;
+    parameters.negligible_count = 1e-12;
+    parameters.alpha_map = Some(Arc::new(RoughnessMap::new(6, 4, &alphas).unwrap()));
+    parameters.density_map = Some(Arc::new(DensityMap::new(6, 4, &masked).unwrap()));
+    let material = DiscreteBrdf::new(parameters).unwrap();
+    let mut scratch = QueryScratch::new();
+    for footprint in footprints(300, 0.01, 21) {
+        for (wi, wo) in directions() {
+            let bxdf = material.at(&footprint, &mut scratch);
+            let (bound, expected) = (
+                bxdf.expected_count_bound(wi, wo),
+                bxdf.expected_count(wi, wo),
+            );
+            assert!(
+                bound >= expected * (1.0 - 1e-9),
+                "{footprint:?}: λ̄ {bound} < {expected}"
+            );
+        }
+    }
+    // Inside texel (0, 0), masked: u < 1/6, v > 3/4.
+    let inside = Footprint::new(
+        DVec2::new(0.08, 0.85),
+        DVec2::new(0.05, 0.0),
+        DVec2::new(0.0, 0.05),
+    )
+    .unwrap();
+    let (wi, wo) = directions()[0];
+    let e = material.at(&inside, &mut scratch).evaluate(wi, wo);
+    assert_eq!(e.negligible, Some(0.0), "{e:?}");
+    assert_eq!(e.nodes_visited, 0);
+}

@@ -179,8 +179,6 @@ struct Layer {
     sampler: GlintSampler,
     /// What the negligible-query test needs (only when queries may be skipped).
     negligible_test: Option<NegligibleTest>,
-    /// max d_k, for the negligible-query bound (1 without a density map).
-    max_density: f64,
     /// ∫d_k over the square: the level's share of the material's flakes.
     mean_density: f64,
 }
@@ -272,10 +270,7 @@ impl Layer {
             colour_channels: parameters.colour_channels,
             ..CountTreeConfig::default()
         };
-        let (max_density, mean_density) = level
-            .density
-            .as_ref()
-            .map_or((1.0, 1.0), |map| (map.max(), map.mean()));
+        let mean_density = level.density.as_ref().map_or(1.0, |map| map.mean());
         let tree = CountTree::with_density_map(
             config,
             Arc::new(move |m: DVec3| distribution.particle_density(m)),
@@ -288,7 +283,6 @@ impl Layer {
             smooth,
             sampler,
             negligible_test,
-            max_density,
             mean_density,
         })
     }
@@ -668,14 +662,19 @@ impl DiscreteBrdf {
         Some(answer)
     }
 
-    /// λ̄ of the negligible-query test for one level: its flakes, N·max d_k per unit area;
-    /// infinite when the material skips nothing or the conic is hyperbolic.
+    /// λ̄ of the negligible-query test for one level: its flakes, at most N·max_A d_k per unit
+    /// area over the footprint ([`DensityMap::max_over`]); infinite when the material skips
+    /// nothing or the conic is hyperbolic.
     fn layer_bound(&self, layer: &Layer, footprint: &Footprint, conic: &SphericalConic) -> f64 {
         layer.negligible_test.map_or(f64::INFINITY, |test| {
+            let density = layer
+                .tree
+                .density_map()
+                .map_or(1.0, |map| map.max_over(footprint));
             test.bound(
                 layer.smooth.distribution(),
                 self.parameters.particles,
-                footprint.area() * layer.max_density,
+                footprint.area() * density,
                 conic,
             )
         })

@@ -20,8 +20,11 @@
 //! step. Whether a box is constant is a count of value changes between neighbouring texels
 //! inside it, from two more summed-area tables: O(1) per box.
 //!
-//! Memory: 24 bytes per texel (the map's own values, its table and the change tables), at most
-//! [`DensityMap::MAX_TEXELS`] texels.
+//! - **Bounds** ([`DensityMap::max_over`]): an upper bound on d over a footprint, from a
+//!   pyramid of maxima, for the negligible-query test.
+//!
+//! Memory: about 27 bytes per texel (the map's own values, its table, the change tables and
+//! the pyramid of maxima), at most [`DensityMap::MAX_TEXELS`] texels.
 
 use std::fmt;
 
@@ -106,6 +109,17 @@ pub struct DensityMap {
     uniform: Option<f64>,
     /// ∫d over the unit square.
     mean: f64,
+    /// Maxima of `fixed` over blocks of 2^L × 2^L texels, L = 1, 2, … until one block holds
+    /// the map (level L − 1 at index L − 1; block (i, j) covers texels [i·2^L, (i + 1)·2^L)).
+    max_levels: Vec<MaxLevel>,
+}
+
+/// One level of the pyramid of maxima.
+#[derive(Clone, Debug, PartialEq)]
+struct MaxLevel {
+    width: usize,
+    height: usize,
+    maxima: Vec<u64>,
 }
 
 impl fmt::Debug for DensityMap {
@@ -238,6 +252,7 @@ impl DensityMap {
             .all(|&q| q == fixed[0])
             .then(|| fixed[0] as f64 / FIXED_ONE);
         let mean = total as f64 / (FIXED_ONE * texels as f64);
+        let max_levels = max_pyramid(&fixed, width, height);
         Ok(Self {
             width,
             height,
@@ -247,6 +262,7 @@ impl DensityMap {
             row_changes,
             uniform,
             mean,
+            max_levels,
         })
     }
 
@@ -279,6 +295,67 @@ impl DensityMap {
     pub fn texel(&self, column: usize, row: usize) -> f64 {
         let j = self.height - 1 - row;
         self.fixed[j * self.width + column] as f64 / FIXED_ONE
+    }
+
+    /// An upper bound on d over the footprint's parallelogram (its bounding box, wrapped):
+    /// the largest value of the few blocks of the pyramid of maxima that cover the box, so the
+    /// bound is exact where the box covers whole blocks and never below the true maximum.
+    #[must_use]
+    pub fn max_over(&self, footprint: &Footprint) -> f64 {
+        if let Some(value) = self.uniform {
+            return value;
+        }
+        let (min, max) = footprint.bounds();
+        let spans = |lo: f64, hi: f64, n: usize| -> Option<[(usize, usize); 2]> {
+            let (first, last) = ((lo * n as f64).floor(), (hi * n as f64).ceil() - 1.0);
+            if !(last - first < n as f64 - 1.0) {
+                return None;
+            }
+            let first = first.rem_euclid(n as f64) as usize;
+            let last = last.rem_euclid(n as f64) as usize;
+            Some(if first <= last {
+                [(first, last), (first, last)]
+            } else {
+                [(first, n - 1), (0, last)]
+            })
+        };
+        let (Some(columns), Some(rows)) = (
+            spans(min.x, max.x, self.width),
+            spans(min.y, max.y, self.height),
+        ) else {
+            return self.max();
+        };
+        let longest = columns
+            .iter()
+            .chain(&rows)
+            .map(|(a, b)| b - a + 1)
+            .max()
+            .unwrap_or(1);
+        // The level whose blocks are at least as wide as the longest span: at most two blocks
+        // per span and axis.
+        let level = (usize::BITS - (longest - 1).leading_zeros()) as usize;
+        let largest = |blocks: &dyn Fn(usize, usize) -> u64, shift: usize| {
+            let mut largest = 0;
+            for &(c0, c1) in &columns {
+                for &(r0, r1) in &rows {
+                    for j in (r0 >> shift)..=(r1 >> shift) {
+                        for i in (c0 >> shift)..=(c1 >> shift) {
+                            largest = largest.max(blocks(i, j));
+                        }
+                    }
+                }
+            }
+            largest
+        };
+        let fixed = if level == 0 {
+            largest(&|i, j| self.fixed[j * self.width + i], 0)
+        } else {
+            match self.max_levels.get(level - 1) {
+                Some(blocks) => largest(&|i, j| blocks.maxima[j * blocks.width + i], level),
+                None => return self.max(),
+            }
+        };
+        fixed as f64 / FIXED_ONE
     }
 
     /// d at texture point `x`, wrapped into the unit square (as stored).
@@ -437,6 +514,30 @@ impl DensityMap {
         }
         mass / FIXED_ONE
     }
+}
+
+/// The pyramid of maxima of `fixed` (width × height): levels of 2 × 2 blocks of the level
+/// below, until one block covers the map.
+fn max_pyramid(fixed: &[u64], width: usize, height: usize) -> Vec<MaxLevel> {
+    let mut levels: Vec<MaxLevel> = Vec::new();
+    let (mut below, mut w, mut h) = (fixed.to_vec(), width, height);
+    while w > 1 || h > 1 {
+        let (next_w, next_h) = (w.div_ceil(2), h.div_ceil(2));
+        let mut maxima = vec![0u64; next_w * next_h];
+        for j in 0..h {
+            for i in 0..w {
+                let block = &mut maxima[(j / 2) * next_w + i / 2];
+                *block = (*block).max(below[j * w + i]);
+            }
+        }
+        levels.push(MaxLevel {
+            width: next_w,
+            height: next_h,
+            maxima: maxima.clone(),
+        });
+        (below, w, h) = (maxima, next_w, next_h);
+    }
+    levels
 }
 
 /// The index k of `range` where the cumulative `mass` passes `target`, and the fraction of
@@ -691,6 +792,59 @@ mod tests {
                 (exact - reference).abs() < 0.01 * footprint.area(),
                 "{uv} {dx} {dy}: {exact} against {reference}"
             );
+        }
+    }
+
+    /// The bound over a footprint is at least every value inside it and at most the largest
+    /// texel its bounding box (wrapped) touches.
+    #[test]
+    fn the_maximum_over_a_footprint_bounds_its_values() {
+        for (w, h, seed) in [(11, 6, 1), (64, 64, 2), (5, 40, 3)] {
+            let (map, _) = patchy(w, h, seed);
+            let mut rng = TeaRng::new([seed, 9, 9, 9], 0, 8);
+            for k in 0..300 {
+                let [a, b] = unit_pair(rng.next_bits());
+                let [c, d] = unit_pair(rng.next_bits());
+                let scale = [0.002, 0.03, 0.3, 2.0][k % 4];
+                let uv = DVec2::new(a, b);
+                let dx = DVec2::new(scale * (0.2 + c), scale * (d - 0.5));
+                let dy = DVec2::new(scale * (0.3 * c - 0.1), scale * (0.2 + d));
+                let footprint = Footprint::new(uv, dx, dy).unwrap();
+                let bound = map.max_over(&footprint);
+                let mut inside = 0.0f64;
+                for s in 0..40 {
+                    for t in 0..40 {
+                        let (s, t) = (f64::from(s) / 39.0 - 0.5, f64::from(t) / 39.0 - 0.5);
+                        inside = inside.max(map.value_at(uv + s * dx + t * dy));
+                    }
+                }
+                let (min, max) = footprint.bounds();
+                // The blocks covering the box reach less than twice its longest side beyond it.
+                let (i0, i1) = (
+                    (min.x * w as f64).floor() as i64,
+                    (max.x * w as f64).ceil() as i64,
+                );
+                let (j0, j1) = (
+                    (min.y * h as f64).floor() as i64,
+                    (max.y * h as f64).ceil() as i64,
+                );
+                let reach = 2 * (i1 - i0).max(j1 - j0);
+                let mut near = 0.0f64;
+                for j in j0 - reach..j1 + reach {
+                    for i in i0 - reach..i1 + reach {
+                        let (i, j) = (
+                            i.rem_euclid(w as i64) as usize,
+                            j.rem_euclid(h as i64) as usize,
+                        );
+                        near = near.max(map.texel(i, h - 1 - j));
+                    }
+                }
+                assert!(bound >= inside, "{w}x{h} {footprint:?}: {bound} < {inside}");
+                assert!(
+                    bound <= near,
+                    "{w}x{h} {footprint:?}: {bound} above the texels near it ({near})"
+                );
+            }
         }
     }
 
