@@ -157,14 +157,46 @@ pub(crate) fn roughness_levels(quick: bool, report: &mut String) -> anyhow::Resu
             build * 1e3
         )?;
     }
-    let mut uniform = GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1)?);
-    uniform.particles = 100_000_000;
-    let uniform = DiscreteBrdf::new(uniform)?;
-    writeln!(
-        report,
-        "| no maps (α = 0.1) | – | – | {:.2} µs | – |",
-        time_per_query(&uniform, queries)? * 1e6
-    )?;
+    // The same queries on α = 0.1 without maps, with a density map alone (a 256 × 256
+    // gradient, so that texel edges cut many nodes) and with a map of ones: what a density
+    // map costs a query, alternating the three so that the machine's load falls on each.
+    let with = |density: Option<Vec<f64>>| -> anyhow::Result<DiscreteBrdf> {
+        let mut parameters =
+            GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1)?);
+        parameters.particles = 100_000_000;
+        if let Some(values) = density {
+            parameters.density_map = Some(Arc::new(DensityMap::new(256, 256, &values)?));
+        }
+        Ok(DiscreteBrdf::new(parameters)?)
+    };
+    let gradient = (0..256 * 256)
+        .map(|k| 0.2 + 0.8 * (k % 256) as f64 / 255.0)
+        .collect();
+    let materials = [
+        ("no maps (α = 0.1)", with(None)?),
+        (
+            "density map, 256² gradient (α = 0.1)",
+            with(Some(gradient))?,
+        ),
+        (
+            "density map of ones (α = 0.1)",
+            with(Some(vec![1.0; 256 * 256]))?,
+        ),
+    ];
+    let mut times = [0.0; 3];
+    for _ in 0..3 {
+        for (time, (_, material)) in times.iter_mut().zip(&materials) {
+            *time += time_per_query(material, queries / 3)?;
+        }
+    }
+    for (time, (label, _)) in times.iter().zip(&materials) {
+        writeln!(
+            report,
+            "| {label} | – | – | {:.2} µs ({:.2}×) | – |",
+            time / 3.0 * 1e6,
+            time / times[0]
+        )?;
+    }
     let falling = errors.windows(2).all(|pair| pair[1] < pair[0]);
     Ok(Check {
         name: "trade: roughness levels",

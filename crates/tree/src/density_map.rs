@@ -443,6 +443,49 @@ impl DensityMap {
         })
     }
 
+    /// Whether [`DensityMap::mean_multiplicity`] weighs the box [min, min + size]²: it covers
+    /// at most 64 texels.
+    #[must_use]
+    pub fn can_weigh(&self, min: DVec2, size: f64) -> bool {
+        let columns = TexelSpan::new(min.x, min.x + size, self.width);
+        let rows = TexelSpan::new(min.y, min.y + size, self.height);
+        (columns.last - columns.first + 1) * (rows.last - rows.first + 1) <= 64
+    }
+
+    /// The mean multiplicity of the particles of the box [min, min + size]² in `footprint`:
+    /// ∫_box d·m / ∫_box d, m(x) the number of the footprint's translates holding x (the
+    /// expected contribution of one of the box's particles, in space). Texel by texel over the
+    /// box, so `None` for a box over more than 64 texels or of mass 0.
+    #[must_use]
+    pub fn mean_multiplicity(&self, footprint: &Footprint, min: DVec2, size: f64) -> Option<f64> {
+        if !self.can_weigh(min, size) {
+            return None;
+        }
+        let columns = TexelSpan::new(min.x, min.x + size, self.width);
+        let rows = TexelSpan::new(min.y, min.y + size, self.height);
+        let max = min + DVec2::splat(size);
+        let (mut mass, mut weighted) = (0.0, 0.0);
+        for j in rows.first..=rows.last {
+            for i in columns.first..=columns.last {
+                let value = self.fixed[j * self.width + i] as f64;
+                if value == 0.0 {
+                    continue;
+                }
+                let lo = DVec2::new(i as f64 / self.width as f64, j as f64 / self.height as f64)
+                    .max(min);
+                let hi = DVec2::new(
+                    (i + 1) as f64 / self.width as f64,
+                    (j + 1) as f64 / self.height as f64,
+                )
+                .min(max);
+                let area = (hi - lo).max(DVec2::ZERO);
+                mass += value * area.x * area.y;
+                weighted += value * footprint.overlap_area_of_rectangle(lo, hi);
+            }
+        }
+        (mass > 0.0).then(|| weighted / mass)
+    }
+
     /// The position in the box [min, min + size]² of the particle with uniform numbers `u`
     /// (in [0, 1)²): u₀ picks the column by the box's marginal masses and the position within
     /// it, u₁ the row within that column and the position within it. The inverse of the
@@ -846,6 +889,51 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The map-weighted mean multiplicity of a box's particles against a midpoint rule over
+    /// the box, for footprints across texel edges and tiles.
+    #[test]
+    fn mean_multiplicity_is_the_weighted_mean_over_the_box() {
+        let (map, _) = patchy(11, 6, 4);
+        let mut rng = TeaRng::new([2, 7, 1, 8], 0, 8);
+        let mut checked = 0;
+        for k in 0..200 {
+            let [a, b] = unit_pair(rng.next_bits());
+            let [c, d] = unit_pair(rng.next_bits());
+            let level = 1 + k % 4;
+            let size = 0.5f64.powi(level as i32);
+            let min = (DVec2::new(c, d) / size).floor() * size;
+            let scale = [0.05, 0.3, 1.2][k % 3];
+            let footprint = Footprint::new(
+                DVec2::new(a, b),
+                DVec2::new(scale, 0.1 * scale),
+                DVec2::new(-0.2 * scale, 0.8 * scale),
+            )
+            .unwrap();
+            let Some(weighted) = map.mean_multiplicity(&footprint, min, size) else {
+                continue;
+            };
+            let n = 400;
+            let (mut mass, mut sum) = (0.0, 0.0);
+            for i in 0..n {
+                for j in 0..n {
+                    let x = min
+                        + size
+                            * DVec2::new((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64);
+                    let d = map.value_at(x);
+                    mass += d;
+                    sum += d * footprint.multiplicity(x) as f64;
+                }
+            }
+            let reference = sum / mass;
+            assert!(
+                (weighted - reference).abs() < 0.02 * reference.max(1.0),
+                "box {min} {size}, {footprint:?}: {weighted} against {reference}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 50);
     }
 
     #[test]

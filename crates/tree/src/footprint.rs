@@ -481,13 +481,24 @@ impl Footprint {
     /// (Sutherland–Hodgman, box by parallelogram).
     #[must_use]
     pub fn overlap_area(&self, min: DVec2, size: f64) -> f64 {
-        let max = min + DVec2::splat(size);
+        self.overlap_area_within(min, min + DVec2::splat(size), DVec2::splat(size))
+    }
+
+    /// ∫ m(x) dx over the rectangle [min, max] (inside the unit square): its area in the
+    /// footprint counted once per integer translate that covers it, as
+    /// [`Footprint::overlap_area`] for a box.
+    pub(crate) fn overlap_area_of_rectangle(&self, min: DVec2, max: DVec2) -> f64 {
+        self.overlap_area_within(min, max, max - min)
+    }
+
+    /// [`Footprint::overlap_area_of_rectangle`] of [min, max], whose sides are `size`.
+    fn overlap_area_within(&self, min: DVec2, max: DVec2, size: DVec2) -> f64 {
         let mut area = 0.0;
         for j in self.rows_for(min.y, max.y) {
             let Some(row) = self.row_translates(min, max, j) else {
                 continue;
             };
-            area += range_len(&row.inside) as f64 * size * size;
+            area += range_len(&row.inside) as f64 * size.x * size.y;
             for i in row.touching {
                 if row.inside.contains(&i) {
                     continue;

@@ -4,8 +4,8 @@
 //! Breadth first, from the root: a node disjoint from the query in space or direction, or
 //! empty, is dropped; a node inside it (multiplicity constant over the box, triangle inside the
 //! conic) adds its count; a partial node on which p is near-uniform stops early when
-//! √(n·q(1−q)) < ε·count (Eq. 10), adding n·q with q its overlap fraction (not where a
-//! density map varies over a box the footprint cuts: q is not known there); a leaf counts its
+//! √(n·q(1−q)) < ε·count (Eq. 10), adding n·q with q its overlap fraction (under a density
+//! map that varies over the box, the map-weighted fraction); a leaf counts its
 //! particles one by one; any other node splits. ε = 0 is exact: the count is then a sum of whole
 //! particles, the count in a fixed region is Binomial(N, ·), and counts are additive over
 //! disjoint footprints.
@@ -199,6 +199,14 @@ impl CountTree {
                 // [0, hi] has variance ≤ hi²/4) already passes. The descent is only worth it
                 // once a query has proved long (the scale floor is active); before that the
                 // paper's condition decides, as in Alg. 1.
+                // Under a density map that varies over a box the footprint cuts, the node's
+                // particles are not uniform over the box: their mean multiplicity is the
+                // map-weighted one (`None` where the box spans too many texels to weigh: the
+                // node is then split rather than estimated, but at the guards).
+                let varying_map = (spatial.partial > 0)
+                    .then_some(self.density_map.as_deref())
+                    .flatten()
+                    .filter(|map| !map.is_constant_over(node.box_min, node.box_size()));
                 let expected_share = |memo: &mut QueryMemo, cells: &mut Vec<DirectionalCell>| {
                     let directional = if directions_inside {
                         1.0
@@ -207,21 +215,18 @@ impl CountTree {
                             self.directional_fraction(node, conic, cells, memo)
                         })
                     };
-                    self.overlap_share(node, footprint, spatial, directional)
+                    let multiplicity = varying_map.and_then(|map| {
+                        map.mean_multiplicity(footprint, node.box_min, node.box_size())
+                    });
+                    self.overlap_share(node, footprint, spatial, directional, multiplicity)
                 };
                 // (A table look-up, so only asked when the threshold is positive.)
                 let cheap = || directions_inside || !self.quadrature.has_entry(&node.cell);
                 let descend =
                     scale_floor.is_some() && spread_bound(node.count, spatial) < threshold;
-                // Under a density map that varies over a box the footprint cuts, the node's
-                // particles are not uniform over the box: its share is not the overlap's area
-                // fraction, so it is split on rather than estimated.
-                let uniform_in_box = spatial.partial == 0
-                    || self
-                        .density_map
-                        .as_deref()
-                        .is_none_or(|map| map.is_constant_over(node.box_min, node.box_size()));
-                if threshold > 0.0 && uniform_in_box && (descend || cheap()) {
+                let weighable =
+                    varying_map.is_none_or(|map| map.can_weigh(node.box_min, node.box_size()));
+                if threshold > 0.0 && weighable && (descend || cheap()) {
                     let share = expected_share(memo, cells);
                     if share.deviation(node.count) < threshold {
                         count += node.count as f64 * share.mean;
@@ -482,19 +487,22 @@ impl CountTree {
     }
 
     /// The expected contribution per particle of `node` and the bound on its variance, given
-    /// the share `directional` of its normals in the conic.
+    /// the share `directional` of its normals in the conic and, under a density map that
+    /// varies over the box, the particles' `weighted` mean multiplicity (else the box's mean,
+    /// its overlap area over its area).
     fn overlap_share(
         &self,
         node: &Node,
         footprint: &Footprint,
         spatial: BoxOverlap,
         directional: f64,
+        weighted: Option<f64>,
     ) -> OverlapShare {
         let box_size = node.box_size();
-        let multiplicity = if spatial.partial == 0 {
-            spatial.inside as f64
-        } else {
-            footprint.overlap_area(node.box_min, box_size) / (box_size * box_size)
+        let multiplicity = match weighted {
+            _ if spatial.partial == 0 => spatial.inside as f64,
+            Some(multiplicity) => multiplicity,
+            None => footprint.overlap_area(node.box_min, box_size) / (box_size * box_size),
         };
         // A particle contributes m(x)·[normal in the conic]: m ∈ [inside, inside + partial] has
         // mean m̄ and (Bhatia–Davis) variance ≤ (m̄ − inside)(inside + partial − m̄); with the
