@@ -206,7 +206,7 @@ class Material:
         uv, _ = _rows("uv", uv, 2)
         dx, _ = _rows("duv_dx", duv_dx, 2)
         dy, _ = _rows("duv_dy", duv_dy, 2)
-        c = self._native.eval(wi, wo, uv, dx, dy, bool(expected_count))
+        c = _with_errors(self._native.eval(wi, wo, uv, dx, dy, bool(expected_count)))
         result = {
             "count": c["count"],
             "expected_count": c["expected_count"],
@@ -238,7 +238,7 @@ class Material:
         """
         wi, single = _rows("wi", wi, 3)
         u, _ = _rows("u", u, None)
-        c = self._native.sample(wi, u)
+        c = _with_errors(self._native.sample(wi, u))
         wo = np.stack([c["wo_x"], c["wo_y"], c["wo_z"]], axis=1)
         smooth_weight = self._colour(c, "weight")
         result = {
@@ -258,7 +258,7 @@ class Material:
             uv, _ = _rows("uv", uv, 2)
             dx, _ = _rows("duv_dx", duv_dx, 2)
             dy, _ = _rows("duv_dy", duv_dy, 2)
-            e = self._native.eval(wi, at, uv, dx, dy, False)
+            e = _with_errors(self._native.eval(wi, at, uv, dx, dy, False))
             f_hat = self._colour(e, "f_hat")
             mask = sampled if f_hat.ndim == 1 else sampled[:, None]
             f_hat = np.where(mask, f_hat, 0.0)
@@ -277,6 +277,18 @@ class Material:
         wo, _ = _rows("wo", wo, 3)
         p = self._native.pdf(wi, wo)["pdf"]
         return p[0] if single else p
+
+
+def _with_errors(columns):
+    """The native columns with their ``error`` column: "" where a row succeeded, else its
+    message (the native module lists only the failed rows)."""
+    rows, messages = columns.pop("error_rows"), columns.pop("error_messages")
+    n = len(next(iter(columns.values())))
+    width = max((len(m) for m in messages), default=1)
+    error = np.zeros(n, dtype=f"<U{width}")
+    error[rows] = messages
+    columns["error"] = error
+    return columns
 
 
 def _material_from_spec(spec):

@@ -146,9 +146,10 @@ fn run_watched<T: Send>(
     }
 }
 
-/// The columns of n answers of K numbers each (NaN where a row failed) and the rows' error
-/// messages (empty where a row succeeded), as a dict of flat float64 arrays named `names`
-/// plus `error`.
+/// The columns of n answers of K numbers each (NaN where a row failed) as a dict of flat
+/// float64 arrays named `names`, plus the failed rows: `error_rows` (their indices, int64) and
+/// `error_messages` (their messages, a list). The package makes the `error` column of them
+/// (one string object per failed row, not per row).
 fn columns<'py, const K: usize>(
     py: Python<'py>,
     names: [&str; K],
@@ -162,11 +163,13 @@ fn columns<'py, const K: usize>(
             .collect();
         dict.set_item(*name, PyArray1::from_vec(py, column))?;
     }
-    let errors: Vec<String> = answers
+    let (rows, messages): (Vec<i64>, Vec<String>) = answers
         .into_iter()
-        .map(|a| a.err().unwrap_or_default())
-        .collect();
-    dict.set_item("error", errors)?;
+        .enumerate()
+        .filter_map(|(i, a)| a.err().map(|message| (i as i64, message)))
+        .unzip();
+    dict.set_item("error_rows", PyArray1::from_vec(py, rows))?;
+    dict.set_item("error_messages", messages)?;
     Ok(dict)
 }
 

@@ -9,7 +9,8 @@
 //! first-hit queries in pixel order). Prints, alternating three times, the time per row of:
 //! the renderer's loop (one scratch for all rows, in the given order, `DiscreteBrdf::at(..)
 //! .evaluate` as glint-tracer calls it); `EvalMaterial::eval_rows` on a one-thread pool, without
-//! and with the expected count; and `eval_rows` on all threads.
+//! the expected count (rows dispatched in Morton order of their footprints, and in input order
+//! for comparison) and with it; and `eval_rows` on all threads.
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -78,6 +79,16 @@ fn main() -> Result<(), String> {
         let batch = one.install(|| material.eval_rows(&rows, false, &cancelled));
         let batch_time = per_row(start);
         let start = Instant::now();
+        one.install(|| {
+            glint_eval::batch::answer_rows(
+                &rows,
+                |_| 0,
+                &cancelled,
+                |scratch, row| material.eval_row(scratch, row, false),
+            )
+        });
+        let input_order = per_row(start);
+        let start = Instant::now();
         one.install(|| material.eval_rows(&rows, true, &cancelled));
         let with_expected = per_row(start);
         let start = Instant::now();
@@ -90,7 +101,8 @@ fn main() -> Result<(), String> {
             .sum();
         println!(
             "round {round}: renderer loop {renderer:.2} µs/row; batch, 1 thread {batch_time:.2} µs/row \
-             ({:.2}×), with expected counts {with_expected:.2} µs/row; batch, {} threads {all:.2} \
+             ({:.2}×), in input order {input_order:.2} µs/row, with expected counts \
+             {with_expected:.2} µs/row; batch, {} threads {all:.2} \
              µs/row; particles found {found} = {batch_found}",
             batch_time / renderer,
             rayon::current_num_threads()
