@@ -76,6 +76,12 @@ fn main() -> Result<(), String> {
         }
         let renderer = per_row(start);
         let start = Instant::now();
+        let mut scratch = QueryScratch::new();
+        for r in &rows {
+            let _ = material.eval_row(&mut scratch, r, false);
+        }
+        let rows_loop = per_row(start);
+        let start = Instant::now();
         let batch = one.install(|| material.eval_rows(&rows, false, &cancelled));
         let batch_time = per_row(start);
         let start = Instant::now();
@@ -100,7 +106,7 @@ fn main() -> Result<(), String> {
             .map(|e| e.count)
             .sum();
         println!(
-            "round {round}: renderer loop {renderer:.2} µs/row; batch, 1 thread {batch_time:.2} µs/row \
+            "round {round}: renderer loop {renderer:.2} µs/row; eval_row loop {rows_loop:.2} µs/row; batch, 1 thread {batch_time:.2} µs/row \
              ({:.2}×), in input order {input_order:.2} µs/row, with expected counts \
              {with_expected:.2} µs/row; batch, {} threads {all:.2} \
              µs/row; particles found {found} = {batch_found}",
