@@ -29,7 +29,7 @@ pub enum FresnelSpec {
 }
 
 /// The default `negligible_count`: glint-tracer's τ for scene files
-/// (`SCENE_NEGLIGIBLE_COUNT`, 10⁻¹²; the integration tests check they agree). A query whose
+/// (`SCENE_NEGLIGIBLE_COUNT`, 10⁻¹²; a test of `cargo xtask eval` checks they agree). A query whose
 /// expected count is provably below it is skipped (its count is 0, as a traversal finds with
 /// probability at least 1 − 10⁻¹²) and answers with its bound as `negligible_bound`.
 pub const DEFAULT_NEGLIGIBLE_COUNT: f64 = 1e-12;
