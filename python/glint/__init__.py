@@ -118,7 +118,8 @@ class Material:
     number in [0, 2^64), taken exactly), ``fresnel`` (None, ``{"conductor": {"eta": [r, g, b],
     "k": [r, g, b]}}`` or ``{"dielectric": {"eta": x}}``, η in [1e-3, 1e3] and k in [0, 1e3];
     NumPy scalars and arrays are accepted), ``multinomial`` ("exact" or "normal"),
-    ``negligible_count`` (skip queries whose expected count is provably below it; 0 = never),
+    ``negligible_count`` (skip queries whose expected count is provably below it: 1e-12 by
+    default, glint-tracer's τ; 0 = never, every query traversed),
     and, keyword only, ``expected_footprint_area`` (Eq. 11), ``pdf_quadrature`` (the
     sampler pdf's rule over the cone: "cubature", the default, or "qmc", the paper's) and
     ``pdf_points`` (its QMC points, in [1, 4096]).
@@ -139,7 +140,7 @@ class Material:
 
     def __init__(self, distribution="beckmann", alpha=0.1, alpha_y=None, particles=1e6,
                  gamma_deg=None, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
-                 negligible_count=0.0, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
+                 negligible_count=1e-12, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
                  pdf_points=64, gamma_degrees=None, density_map=None, alpha_map=None,
                  tint_map=None, roughness_levels=8):
         if gamma_deg is not None:
@@ -201,7 +202,7 @@ class Material:
             result = {key: value[0] for key, value in result.items()}
         return result
 
-    def eval(self, wi, wo, uv, duv_dx, duv_dy):
+    def eval(self, wi, wo, uv, duv_dx, duv_dy, *, expected_count=True):
         """f̂ and its statistics for n queries.
 
         ``wi``, ``wo``: (n, 3) directions in the local frame (z = normal), ``wi`` toward the
@@ -213,13 +214,18 @@ class Material:
         (n, 3)), ``nodes_visited``, ``negligible_bound`` (NaN where the query was traversed)
         and ``error`` (empty where the row is valid, else the message ``eval`` gives; the
         row's numbers are then NaN). 1-D inputs give one query's values.
+
+        ``expected_count=False`` skips the expected count (a tree traversal of its own, as
+        costly as the count's; the column is then NaN): what a renderer needs is f̂.
+        Rows are answered in parallel in an order that keeps neighbouring footprints on one
+        thread, and returned in input order, bit for bit whatever the batch or thread count.
         """
         wi, single = _rows("wi", wi, 3)
         wo, _ = _rows("wo", wo, 3)
         uv, _ = _rows("uv", uv, 2)
         dx, _ = _rows("duv_dx", duv_dx, 2)
         dy, _ = _rows("duv_dy", duv_dy, 2)
-        c = self._native.eval(wi, wo, uv, dx, dy)
+        c = _with_errors(self._native.eval(wi, wo, uv, dx, dy, bool(expected_count)))
         result = {
             "count": c["count"],
             "expected_count": c["expected_count"],
@@ -253,7 +259,7 @@ class Material:
         u, _ = _rows("u", u, None)
         # A material with maps samples at the footprint's centre.
         at_uv = _rows("uv", uv, 2)[0] if uv is not None and self._has_maps() else None
-        c = self._native.sample(wi, u, at_uv)
+        c = _with_errors(self._native.sample(wi, u, at_uv))
         wo = np.stack([c["wo_x"], c["wo_y"], c["wo_z"]], axis=1)
         smooth_weight = self._colour(c, "weight")
         result = {
@@ -273,7 +279,7 @@ class Material:
             uv, _ = _rows("uv", uv, 2)
             dx, _ = _rows("duv_dx", duv_dx, 2)
             dy, _ = _rows("duv_dy", duv_dy, 2)
-            e = self._native.eval(wi, at, uv, dx, dy)
+            e = _with_errors(self._native.eval(wi, at, uv, dx, dy, False))
             f_hat = self._colour(e, "f_hat")
             mask = sampled if f_hat.ndim == 1 else sampled[:, None]
             f_hat = np.where(mask, f_hat, 0.0)
@@ -298,6 +304,18 @@ class Material:
 
     def _has_maps(self):
         return any(m is not None for m in self._maps.values())
+
+
+def _with_errors(columns):
+    """The native columns with their ``error`` column: "" where a row succeeded, else its
+    message (the native module lists only the failed rows)."""
+    rows, messages = columns.pop("error_rows"), columns.pop("error_messages")
+    n = len(next(iter(columns.values())))
+    width = max((len(m) for m in messages), default=1)
+    error = np.zeros(n, dtype=f"<U{width}")
+    error[rows] = messages
+    columns["error"] = error
+    return columns
 
 
 def _material_from_spec(spec, maps=None):

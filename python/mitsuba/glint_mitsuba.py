@@ -2,9 +2,14 @@
 ``glint_direct`` integrator that gives it pixel footprints, and a small version of the
 sphere-lights scene (``scenes/sphere_lights.toml``, Fig. 4 of Jakob et al. 2014).
 
-Importing this module selects the variant ``scalar_rgb`` (unless one is already set; only the
-``scalar_*`` RGB variants are supported: the plugins call the package once per shading query)
-and registers both plugins.
+Importing this module selects the variant ``scalar_rgb`` unless one is already set, and
+registers the plugins for it: in a ``scalar_*`` RGB variant the ones below (the plugins call the
+package once per shading query), in a vectorized RGB variant (``llvm_ad_rgb``, ``cuda_ad_rgb``)
+those of ``glint_vectorized.py`` (``glint``, ``glint_direct`` and ``glint_path``), which answer
+whole wavefronts with one batch call of the package. ``llvm_*`` variants need LLVM 19's
+``libLLVM.so`` (Debian: ``apt-get install libllvm19``, then ``DRJIT_LIBLLVM_PATH`` set to the
+``libLLVM.so.19.1`` that ``dpkg -L libllvm19`` lists): with LLVM 15 or 16 Mitsuba 3.9's JIT
+aborts.
 
 Conventions (Mitsuba 3.9, checked against its ``roughconductor``): BSDF methods work in the local
 shading frame (z = the normal); ``si.wi`` points away from the surface toward the previous
@@ -24,20 +29,28 @@ BSDF evaluates f̂ when the interaction carries uv partials and its smooth limit
 (after the first bounce, as the paper does).
 """
 
+import contextlib
 import math
+import sys
+from pathlib import Path
 
 import mitsuba as mi
 import numpy as np
 
 import glint
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from glint_vectorized import material_parameters  # noqa: E402
+from glint_vectorized import scale_parameter as _scale  # noqa: E402
+
 if mi.variant() is None:
     mi.set_variant("scalar_rgb")
-if not mi.variant().startswith("scalar_") or "rgb" not in mi.variant():
-    raise ImportError(f"glint_mitsuba supports the scalar_rgb variant, not {mi.variant()}")
+if "rgb" not in mi.variant():
+    raise ImportError(f"glint_mitsuba supports RGB variants, not {mi.variant()}")
+#: Whether the plugins are the vectorized ones (``glint_vectorized.py``).
+VECTORIZED = not mi.variant().startswith("scalar_")
 
 _BELOW_ONE = math.nextafter(1.0, 0.0)
-_MAX_DOUBLE = float(np.finfo(np.float64).max)
 #: The largest ``footprint_scale``, as glint-tracer's (a footprint of 10⁶ pixels).
 _MAX_FOOTPRINT_SCALE = 1e6
 _FLAGS = (mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
@@ -48,25 +61,13 @@ def _vec(v):
     return np.array([v[0], v[1], v[2]], dtype=np.float64)
 
 
-def _scale(name, value, lowest, highest, zero=False):
-    """A positive scale in (lowest, highest] (or 0 when ``zero``), else ``ValueError`` naming
-    it, as the package names a material parameter."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a number, not {value!r}")
-    value = float(value)
-    if not ((zero and value == 0.0) or lowest < value <= highest):
-        allowed = f"{'0 or ' if zero else ''}in ({lowest:g}, {highest:g}]"
-        raise ValueError(f"{name} = {value!r} must be {allowed}")
-    return value
-
-
 class GlintBSDF(mi.BSDF):
     """The discrete multiscale BRDF (f̂, Eq. 5) of ``glint.Material``.
 
     Parameters: ``distribution`` ("beckmann"), ``alpha`` (0.1), ``alpha_y`` (= alpha),
     ``particles`` (1e6), ``gamma_degrees`` (1; ``gamma_deg``, its older name, still works,
     deprecated), ``epsilon`` (0.1), ``seed`` (0), ``multinomial``
-    ("exact"), ``negligible_count`` (0): as ``glint.Material``, which checks them (an invalid
+    ("exact"), ``negligible_count`` (1e-12): as ``glint.Material``, which checks them (an invalid
     one raises ``ValueError`` naming it); ``uv_scale`` (1): texture repetitions per unit of
     the shape's (u, v), positive and finite, as in the scene files. F = 1 (no Fresnel).
 
@@ -81,20 +82,9 @@ class GlintBSDF(mi.BSDF):
     def __init__(self, props):
         super().__init__(props)
 
-        def get(name, default):
-            return props.get(name, default) if name in props else default
-
-        # As in scene files: positive and finite (the glint-tracer's `uv_scale`).
-        self.uv_scale = _scale("glint.uv_scale", get("uv_scale", 1.0), 0.0, _MAX_DOUBLE)
-        # The package checks every material parameter, naming it (a seed of 1.7 is an error,
-        # not 1).
-        self.params = dict(
-            distribution=get("distribution", "beckmann"), alpha=get("alpha", 0.1),
-            alpha_y=get("alpha_y", None), particles=get("particles", 1e6),
-            gamma_degrees=get("gamma_degrees", None), gamma_deg=get("gamma_deg", None),
-            epsilon=get("epsilon", 0.1), seed=get("seed", 0),
-            multinomial=get("multinomial", "exact"),
-            negligible_count=get("negligible_count", 0.0))
+        # uv_scale as in scene files (positive and finite, glint-tracer's); the package
+        # checks every material parameter, naming it (a seed of 1.7 is an error, not 1).
+        self.params, self.uv_scale = material_parameters(props)
         self.material = glint.Material(**self.params)
         self.m_components = [_FLAGS]
         self.m_flags = _FLAGS
@@ -243,8 +233,13 @@ class GlintDirectIntegrator(mi.SamplingIntegrator):
         return f"GlintDirectIntegrator[footprint_scale={self.footprint_scale}]"
 
 
-mi.register_bsdf("glint", lambda props: GlintBSDF(props))
-mi.register_integrator("glint_direct", lambda props: GlintDirectIntegrator(props))
+if VECTORIZED:
+    import glint_vectorized  # noqa: E402
+
+    GlintBSDF, GlintDirectIntegrator, GlintPathIntegrator = glint_vectorized.register()
+else:
+    mi.register_bsdf("glint", lambda props: GlintBSDF(props))
+    mi.register_integrator("glint_direct", lambda props: GlintDirectIntegrator(props))
 
 
 # -- the scene -----------------------------------------------------------------------------------
@@ -259,7 +254,8 @@ EXPOSURE = -2.5
 def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=1e9,
                         gamma_degrees=0.5, alpha=0.1, epsilon=0.1, seed=1, uv_scale=0.5,
                         negligible_count=1e-12, footprint_scale=1.0, hide_emitters=False,
-                        rfilter="gaussian", sampler_seed=0):
+                        rfilter="gaussian", sampler_seed=0, integrator="glint_direct",
+                        max_depth=6):
     """A Mitsuba scene dict of ``scenes/sphere_lights.toml`` (frame 0), small by default.
 
     ``floor``: "glint" (the ``glint`` BSDF with the scene's material) or "roughconductor"
@@ -268,6 +264,9 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
     (−20, 0, 20), u along +x, v along −z, normal +y. Lights: radiance Φ/(4π²r²), Φ = 20 W.
     Mitsuba's roughconductor uses the separable Smith G1(wi)·G1(wo), glint the
     height-correlated G2; at α = 0.1 and this view (θ ≈ 77°) they differ by ~10⁻⁴.
+
+    ``integrator``: "glint_direct", "glint_path" (vectorized variants only; ``max_depth``) or
+    Mitsuba's "path". Render it with ``render`` (below) to bound memory.
     """
     width, height = resolution
     if floor == "glint":
@@ -281,10 +280,20 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
     else:
         raise ValueError(f"floor must be 'glint' or 'roughconductor', not {floor!r}")
     T = mi.ScalarTransform4f
+    if integrator == "path":
+        integrator_dict = {"type": "path", "max_depth": max_depth,
+                           "hide_emitters": hide_emitters}
+    elif integrator in ("glint_direct", "glint_path"):
+        integrator_dict = {"type": integrator, "footprint_scale": footprint_scale,
+                           "hide_emitters": hide_emitters}
+        if integrator == "glint_path":
+            integrator_dict["max_depth"] = max_depth
+    else:
+        raise ValueError(f"integrator must be 'glint_direct', 'glint_path' or 'path', "
+                         f"not {integrator!r}")
     scene = {
         "type": "scene",
-        "integrator": {"type": "glint_direct", "footprint_scale": footprint_scale,
-                       "hide_emitters": hide_emitters},
+        "integrator": integrator_dict,
         "sensor": {
             "type": "perspective", "fov": 40.0, "fov_axis": "y",
             # Mitsuba starts all three rays of a differential at the main ray's near-clip
@@ -307,3 +316,49 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
                                "emitter": {"type": "area", "radiance": {
                                    "type": "rgb", "value": [radiance] * 3}}}
     return scene
+
+
+#: The most samples a pass of ``render`` traces at once in a vectorized variant (each holds a
+#: few hundred bytes in the plugins' NumPy rows and Dr.Jit's arrays: about 1 GB at this size).
+MAX_WAVEFRONT = 1 << 21
+
+
+def render(scene, samples_per_pass=None, seed=0):
+    """``mi.render`` in passes of ``samples_per_pass`` samples per pixel (a divisor of the
+    sensor's sample count), averaged, so that memory stays bounded at any resolution and spp.
+    By default, in a vectorized variant, the largest divisor whose wavefront (pixels × samples
+    per pass) stays within ``MAX_WAVEFRONT``; in a scalar one, all samples at once. Pass k uses
+    the sampler seed ``seed + k``. Returns the image as ``mi.TensorXf``.
+
+    (Mitsuba 3.9 deprecates its integrators' own ``samples_per_pass``; glint's integrators
+    undo the film's differential scaling with the pass's sample count, so footprints stay one
+    pixel whatever the split.)"""
+    sensor = scene.sensors()[0]
+    spp = sensor.sampler().sample_count()
+    width, height = sensor.film().crop_size()
+    if samples_per_pass is None:
+        samples_per_pass = spp
+        if VECTORIZED:
+            samples_per_pass = max(k for k in range(1, spp + 1)
+                                   if spp % k == 0 and (k == 1 or width * height * k
+                                                        <= MAX_WAVEFRONT))
+    if not (isinstance(samples_per_pass, (int, np.integer)) and not isinstance(
+            samples_per_pass, bool) and 1 <= samples_per_pass <= spp
+            and spp % samples_per_pass == 0):
+        raise ValueError(f"samples_per_pass = {samples_per_pass!r} must be a whole divisor of "
+                         f"the sample count {spp}")
+    passes = spp // int(samples_per_pass)
+    total = None
+    python_bsdfs = VECTORIZED and any(isinstance(shape.bsdf(), GlintBSDF)
+                                      for shape in scene.shapes())
+    with contextlib.ExitStack() as flags:
+        if python_bsdfs:
+            # Mitsuba's own integrators can call a Python BSDF only in evaluated mode.
+            import drjit as dr
+
+            flags.enter_context(dr.scoped_set_flag(dr.JitFlag.SymbolicLoops, False))
+            flags.enter_context(dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False))
+        for k in range(passes):
+            image = mi.render(scene, seed=seed + k, spp=int(samples_per_pass))
+            total = image if total is None else total + image
+    return total / passes if passes > 1 else total

@@ -1,10 +1,15 @@
 """Render the sphere-lights scene (scenes/sphere_lights.toml, small) with Mitsuba 3 and glint.
 
-    python python/mitsuba/render_sphere_lights.py [--spp N] [--resolution WxH] [--out FILE]
+    python python/mitsuba/render_sphere_lights.py [--variant scalar_rgb|llvm_ad_rgb]
+        [--integrator direct|path] [--spp N] [--resolution WxH] [--out FILE]
 
-FILE ends in .png (exposure −2.5 stops, as the scene file; sRGB) or .exr (linear). Scalar
-Mitsuba calls the Python plugins once per sample (~0.2 ms each with a glint floor), so the
-default is small: 160×90 at 8 spp takes about 20 s.
+FILE ends in .png (exposure −2.5 stops, as the scene file; sRGB) or .exr (linear). In
+``scalar_rgb`` Mitsuba calls the Python plugins once per sample, so the default is small
+(160×90 at 8 spp: about 20 s); in ``llvm_ad_rgb`` they answer whole wavefronts (about 1 s; it
+needs LLVM 19, see python/README.md). ``--integrator path`` is glint_path (vectorized variants
+only): pixel footprints at the first hit, the smooth limit after. Images are rendered in passes
+of ``--samples-per-pass`` samples per pixel (by default as many as keep a pass within 2²¹
+samples), so memory stays bounded.
 """
 
 import argparse
@@ -15,7 +20,6 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import glint_mitsuba as gm  # noqa: E402  (sets the variant and registers the plugins)
 import mitsuba as mi  # noqa: E402
 
 
@@ -39,24 +43,42 @@ def main(argv=None):
     parser.add_argument("--floor", choices=["glint", "roughconductor"], default="glint",
                         help="the floor's BSDF (glint)")
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (0)")
+    parser.add_argument("--variant", choices=["scalar_rgb", "llvm_ad_rgb", "cuda_ad_rgb"],
+                        default="scalar_rgb", help="Mitsuba variant (scalar_rgb)")
+    parser.add_argument("--integrator", choices=["direct", "path"], default="direct",
+                        help="glint_direct or glint_path (vectorized variants) (direct)")
+    parser.add_argument("--samples-per-pass", type=int, default=None,
+                        help="samples per pixel per pass, a divisor of --spp (automatic)")
     args = parser.parse_args(argv)
     if args.spp < 1:
         parser.error("--spp must be at least 1")
+    if args.samples_per_pass is not None and not (
+            1 <= args.samples_per_pass <= args.spp and args.spp % args.samples_per_pass == 0):
+        parser.error("--samples-per-pass must be a divisor of --spp")
+    if args.integrator == "path" and args.variant == "scalar_rgb":
+        parser.error("--integrator path needs a vectorized variant (--variant llvm_ad_rgb): "
+                     "the scalar plugins have no path integrator")
+    if args.variant not in mi.variants():
+        parser.error(f"this Mitsuba has no variant {args.variant}")
+    mi.set_variant(args.variant)
+    import glint_mitsuba as gm  # registers the plugins of the variant
     suffix = args.out.suffix.lower()
     if suffix not in (".png", ".exr"):
         parser.error("--out must end in .png or .exr")
 
     scene = mi.load_dict(gm.sphere_lights_scene(args.resolution, args.spp, args.floor,
-                                                sampler_seed=args.seed))
+                                                sampler_seed=args.seed,
+                                                integrator=f"glint_{args.integrator}"))
     start = time.perf_counter()
-    image = mi.render(scene)
+    image = gm.render(scene, samples_per_pass=args.samples_per_pass, seed=args.seed)
     seconds = time.perf_counter() - start
     if suffix == ".png":
         image = image * math.pow(2.0, gm.EXPOSURE)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     mi.util.write_bitmap(str(args.out), image)
     w, h = args.resolution
-    print(f"{args.out}: {w}x{h}, {args.spp} spp, {args.floor} floor, {seconds:.1f} s")
+    print(f"{args.out}: {w}x{h}, {args.spp} spp, {args.floor} floor, {args.variant}, "
+          f"glint_{args.integrator}, {seconds:.1f} s")
 
 
 if __name__ == "__main__":

@@ -7,30 +7,27 @@
 //! package `glint` (`glint/__init__.py`) holds the documented signatures and shapes; this
 //! module takes C-contiguous float64 arrays of n rows and returns flat columns.
 //!
-//! Rows are answered in parallel (rayon, one query scratch per worker) with the GIL released;
+//! Rows are answered in parallel with the GIL released by glint-eval's batch machinery (one
+//! query scratch per worker thread, kept across calls; rows dispatched by footprint locality);
 //! each row's answer depends only on the row, so the thread count never changes a result.
 //! The worker threads belong to a pool of this process ([`process_pool`]), never rayon's
 //! global pool: a child forked after the parent used the package (multiprocessing's default
 //! on Linux) has none of the parent's threads, and a pool built before the fork would wait
 //! for them forever.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use glint_brdf::QueryScratch;
-use glint_eval::{EvalMaterial, MapSpec, MaterialSpec, uniforms_from_three};
+use glint_eval::{EvalMaterial, EvalRow, MapSpec, MaterialSpec, uniforms_from_three};
 use numpy::{PyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rayon::prelude::*;
 
 mod render;
-
-/// Rows per parallel task: large enough that scheduling is cheap next to ~1–20 µs queries.
-const ROWS_PER_TASK: usize = 256;
 
 /// A built glint material (see `glint.Material`).
 #[pyclass(frozen, module = "glint._glint")]
@@ -75,39 +72,13 @@ fn same_length(n: usize, others: &[(usize, &str)]) -> PyResult<()> {
     Ok(())
 }
 
-/// The worker pool of this process: built on first use, and built again in a forked child
-/// (whose process id differs from the one that built it). A child cannot use its parent's
-/// pool: fork copies the pool's state but none of its threads. The old pool is leaked, not
-/// dropped, since dropping it would signal threads (and perhaps a lock one held at the fork)
-/// that do not exist in the child; it costs one pool per fork.
+/// glint-eval's worker pool of this process ([`glint_eval::batch::process_pool`], rebuilt in a
+/// forked child).
 ///
 /// Called with the GIL held: `os.fork` holds the GIL too, so no other thread of this module
-/// is inside the lock when a process forks.
+/// is inside the pool's lock when a process forks.
 fn process_pool() -> PyResult<Arc<rayon::ThreadPool>> {
-    static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
-    let pid = std::process::id();
-    let mut pool = POOL
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    match pool.as_ref() {
-        Some((built_in, current)) if *built_in == pid => Ok(Arc::clone(current)),
-        _ => {
-            let built = Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .thread_name(|i| format!("glint-{i}"))
-                    .build()
-                    .map_err(|e| {
-                        pyo3::exceptions::PyRuntimeError::new_err(format!(
-                            "cannot start glint's worker threads: {e}"
-                        ))
-                    })?,
-            );
-            if let Some(inherited) = pool.replace((pid, Arc::clone(&built))) {
-                std::mem::forget(inherited);
-            }
-            Ok(built)
-        }
-    }
+    glint_eval::batch::process_pool().map_err(pyo3::exceptions::PyRuntimeError::new_err)
 }
 
 /// Batches of at most this many rows are answered on the calling thread's pool directly;
@@ -118,7 +89,9 @@ const ROWS_ANSWERED_UNWATCHED: usize = 16;
 /// How often a watched batch runs Python's signal handlers.
 const SIGNAL_CHECK_INTERVAL: Duration = Duration::from_millis(50);
 
-/// Answers every row in parallel on `pool`, one scratch per task, with the GIL released.
+/// Answers every row in parallel on `pool` with glint-eval's batch machinery
+/// ([`glint_eval::batch::answer_rows`]: each worker's scratch kept across calls, rows
+/// dispatched in the order of `key`, answers in input order), with the GIL released.
 ///
 /// A large batch runs on a scoped thread while the calling thread waits for it and, every
 /// [`SIGNAL_CHECK_INTERVAL`], takes the GIL to run Python's signal handlers: Ctrl-C sets a flag
@@ -128,30 +101,22 @@ fn answer_rows<I: Sync, O: Send>(
     py: Python<'_>,
     pool: &rayon::ThreadPool,
     inputs: &[I],
+    key: impl Fn(&I) -> u64 + Sync + Send,
     answer: impl Fn(&mut QueryScratch, &I) -> O + Sync + Send,
 ) -> PyResult<Vec<O>> {
     let cancelled = AtomicBool::new(false);
-    let work = || {
-        pool.install(|| {
-            inputs
-                .par_chunks(ROWS_PER_TASK)
-                .flat_map_iter(|chunk| {
-                    let mut scratch = QueryScratch::new();
-                    chunk
-                        .iter()
-                        .map_while(|input| {
-                            (!cancelled.load(Ordering::Relaxed))
-                                .then(|| answer(&mut scratch, input))
-                        })
-                        .collect::<Vec<_>>()
-                })
-                .collect::<Vec<_>>()
-        })
+    let work =
+        || pool.install(|| glint_eval::batch::answer_rows(inputs, &key, &cancelled, &answer));
+    let answers = if inputs.len() <= ROWS_ANSWERED_UNWATCHED {
+        py.detach(work)
+    } else {
+        run_watched(py, &cancelled, work)?
     };
-    if inputs.len() <= ROWS_ANSWERED_UNWATCHED {
-        return Ok(py.detach(work));
-    }
-    run_watched(py, &cancelled, work)
+    // Every row is answered unless the batch was cancelled, which returned above.
+    Ok(answers
+        .into_iter()
+        .map(|a| a.expect("answered: the batch was not cancelled"))
+        .collect())
 }
 
 /// Runs `work` with the GIL released on a scoped thread while the calling thread waits for it
@@ -191,9 +156,10 @@ fn run_watched<T: Send>(
     }
 }
 
-/// The columns of n answers of K numbers each (NaN where a row failed) and the rows' error
-/// messages (empty where a row succeeded), as a dict of flat float64 arrays named `names`
-/// plus `error`.
+/// The columns of n answers of K numbers each (NaN where a row failed) as a dict of flat
+/// float64 arrays named `names`, plus the failed rows: `error_rows` (their indices, int64) and
+/// `error_messages` (their messages, a list). The package makes the `error` column of them
+/// (one string object per failed row, not per row).
 fn columns<'py, const K: usize>(
     py: Python<'py>,
     names: [&str; K],
@@ -207,11 +173,13 @@ fn columns<'py, const K: usize>(
             .collect();
         dict.set_item(*name, PyArray1::from_vec(py, column))?;
     }
-    let errors: Vec<String> = answers
+    let (rows, messages): (Vec<i64>, Vec<String>) = answers
         .into_iter()
-        .map(|a| a.err().unwrap_or_default())
-        .collect();
-    dict.set_item("error", errors)?;
+        .enumerate()
+        .filter_map(|(i, a)| a.err().map(|message| (i as i64, message)))
+        .unzip();
+    dict.set_item("error_rows", PyArray1::from_vec(py, rows))?;
+    dict.set_item("error_messages", messages)?;
     Ok(dict)
 }
 
@@ -254,6 +222,9 @@ impl Material {
     /// The `eval` op over n rows: flat columns `count`, `expected_count`, `d_hat`, `f_hat_r`,
     /// `f_hat_g`, `f_hat_b`, `f_smooth_r`, …, `nodes_visited`, `negligible_bound` (NaN where the
     /// query was traversed) and `error`.
+    /// With `expected_count` false the expected count's own traversal is skipped (NaN).
+    #[pyo3(signature = (wi, wo, uv, duv_dx, duv_dy, expected_count = true))]
+    #[allow(clippy::too_many_arguments)]
     fn eval<'py>(
         &self,
         py: Python<'py>,
@@ -262,6 +233,7 @@ impl Material {
         uv: PyReadonlyArray2<'py, f64>,
         duv_dx: PyReadonlyArray2<'py, f64>,
         duv_dy: PyReadonlyArray2<'py, f64>,
+        expected_count: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let (wi, wo) = (rows::<3>(&wi, "wi")?, rows::<3>(&wo, "wo")?);
         let (uv, dx, dy) = (
@@ -278,27 +250,33 @@ impl Material {
                 (dy.len(), "duv_dy"),
             ],
         )?;
-        let indices: Vec<usize> = (0..wi.len()).collect();
+        let rows: Vec<EvalRow> = (0..wi.len())
+            .map(|i| EvalRow {
+                wi: wi[i],
+                wo: wo[i],
+                uv: uv[i],
+                duv_dx: dx[i],
+                duv_dy: dy[i],
+            })
+            .collect();
         let material = &self.inner;
         let pool = process_pool()?;
-        let answers = answer_rows(py, &pool, &indices, |scratch, &i| {
-            material
-                .eval(scratch, wi[i], wo[i], uv[i], dx[i], dy[i])
-                .map(|e| {
-                    [
-                        e.count,
-                        e.expected_count,
-                        e.d_hat,
-                        e.f_hat.x,
-                        e.f_hat.y,
-                        e.f_hat.z,
-                        e.f_smooth.x,
-                        e.f_smooth.y,
-                        e.f_smooth.z,
-                        f64::from(e.nodes_visited),
-                        e.negligible_bound.unwrap_or(f64::NAN),
-                    ]
-                })
+        let answers = answer_rows(py, &pool, &rows, EvalRow::locality_key, |scratch, row| {
+            material.eval_row(scratch, row, expected_count).map(|e| {
+                [
+                    e.count,
+                    e.expected_count,
+                    e.d_hat,
+                    e.f_hat.x,
+                    e.f_hat.y,
+                    e.f_hat.z,
+                    e.f_smooth.x,
+                    e.f_smooth.y,
+                    e.f_smooth.z,
+                    f64::from(e.nodes_visited),
+                    e.negligible_bound.unwrap_or(f64::NAN),
+                ]
+            })
         })?;
         columns(
             py,
@@ -356,17 +334,23 @@ impl Material {
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
         let pool = process_pool()?;
-        let answers = answer_rows(py, &pool, &indices, |_, &i| {
-            let u = u[i].clone()?;
-            Ok(
-                match material.sample(wi[i], u, uv.as_ref().map(|uv| uv[i]))? {
-                    Some(s) => [
-                        s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z,
-                    ],
-                    None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
-                },
-            )
-        })?;
+        let answers = answer_rows(
+            py,
+            &pool,
+            &indices,
+            |_| 0,
+            |_, &i| {
+                let u = u[i].clone()?;
+                Ok(
+                    match material.sample(wi[i], u, uv.as_ref().map(|uv| uv[i]))? {
+                        Some(s) => [
+                            s.wo.x, s.wo.y, s.wo.z, s.pdf, s.weight.x, s.weight.y, s.weight.z,
+                        ],
+                        None => [f64::NAN, f64::NAN, f64::NAN, 0.0, 0.0, 0.0, 0.0],
+                    },
+                )
+            },
+        )?;
         columns(
             py,
             [
@@ -395,11 +379,17 @@ impl Material {
         let indices: Vec<usize> = (0..wi.len()).collect();
         let material = &self.inner;
         let pool = process_pool()?;
-        let answers = answer_rows(py, &pool, &indices, |_, &i| {
-            material
-                .pdf(wi[i], wo[i], uv.as_ref().map(|uv| uv[i]))
-                .map(|p| [p])
-        })?;
+        let answers = answer_rows(
+            py,
+            &pool,
+            &indices,
+            |_| 0,
+            |_, &i| {
+                material
+                    .pdf(wi[i], wo[i], uv.as_ref().map(|uv| uv[i]))
+                    .map(|p| [p])
+            },
+        )?;
         columns(py, ["pdf"], answers)
     }
 }

@@ -123,6 +123,16 @@ mod tests {
 
     const MATERIAL: &str = r#"{"distribution": "beckmann", "alpha": 0.1, "alpha_y": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "epsilon": 0.1, "seed": 7, "fresnel": "none"}"#;
 
+    /// `cargo xtask eval` skips negligible queries by default at the tracer's τ for scene
+    /// files, so its answers and a render's agree on which queries are skipped.
+    #[test]
+    fn the_default_negligible_count_is_the_tracers() {
+        assert_eq!(
+            glint_eval::DEFAULT_NEGLIGIBLE_COUNT.to_bits(),
+            glint_tracer::scene_file::SCENE_NEGLIGIBLE_COUNT.to_bits()
+        );
+    }
+
     fn run_lines(lines: &[String]) -> (Vec<Value>, usize) {
         let input = lines.join("\n");
         let mut output = Vec::new();

@@ -437,6 +437,37 @@ enum GlintStatus glint_eval(const struct GlintMaterial *material,
                             struct GlintEvaluation *evaluation);
 
 /**
+ * `glint_eval` for `n` rows at once, in parallel, at a renderer's speed: row i is the
+ * footprint `footprints[i]` with the directions `wi[3i..3i+3]`, `wo[3i..3i+3]`, answered in
+ * `evaluations[i]` with its status in `statuses[i]` (`GLINT_OK`, or `GLINT_INVALID_ARGUMENT`
+ * for a row `glint_eval` would refuse; that row's evaluation is then all zeros). Each row's
+ * answer is `glint_eval`'s for it, bit for bit, whatever `n` and the thread count.
+ *
+ * No scratch is passed: the rows are answered by glint-eval's batch machinery (a pool of
+ * worker threads of this process, one query scratch per worker kept across calls, rows
+ * dispatched so that neighbouring footprints go to one thread; answers in input order). The
+ * pool has one thread per core unless `RAYON_NUM_THREADS` says otherwise, and is rebuilt in a
+ * child process forked after a call. Any number of threads may call this at once.
+ *
+ * Returns `GLINT_OK` when every row succeeded, `GLINT_INVALID_ARGUMENT` when one did not
+ * (`glint_last_error` then names the first such row and its argument), or the status of a
+ * NULL pointer (every array may be NULL when `n` is 0).
+ *
+ * # Safety
+ * `material` is NULL or a live material; `footprints` NULL or `n` readable footprints; `wi`
+ * and `wo` NULL or 3·`n` readable doubles each; `evaluations` NULL or writable for `n`
+ * evaluations and `statuses` for `n` statuses, neither read nor written by anything else
+ * during the call.
+ */
+enum GlintStatus glint_eval_batch(const struct GlintMaterial *material,
+                                  uintptr_t n,
+                                  const struct GlintFootprint *footprints,
+                                  const double *wi,
+                                  const double *wo,
+                                  struct GlintEvaluation *evaluations,
+                                  enum GlintStatus *statuses);
+
+/**
  * The expected count N·a(A)·∫p(m)dm of the query `glint_eval` makes: what its count
  * averages to over particle sets (a traversal of its own). Arguments as for `glint_eval`.
  *

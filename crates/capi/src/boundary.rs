@@ -39,6 +39,19 @@ impl Failure {
             message,
         }
     }
+
+    /// The status it returns.
+    pub(crate) fn status(&self) -> GlintStatus {
+        self.status
+    }
+
+    /// The same failure, said of row `i` of a batch.
+    pub(crate) fn in_row(self, i: usize) -> Self {
+        Self {
+            status: self.status,
+            message: format!("row {i}: {}", self.message),
+        }
+    }
 }
 
 thread_local! {
@@ -131,6 +144,46 @@ pub(crate) unsafe fn read_array<const N: usize>(
     // SAFETY: `[f64; N]` has the size of N doubles and the alignment of one; the contract
     // makes N doubles readable there.
     unsafe { read(pointer.cast::<[f64; N]>(), name) }
+}
+
+/// The caller's array of `n` values of `T` as a slice (empty for `n` = 0, where the pointer may
+/// be NULL).
+///
+/// # Safety
+/// `pointer` is NULL or points to `n` readable, aligned, initialized values of `T` that
+/// nothing writes during the call.
+pub(crate) unsafe fn read_slice<'a, T>(
+    pointer: *const T,
+    n: usize,
+    name: &str,
+) -> Result<&'a [T], Failure> {
+    if n == 0 {
+        return Ok(&[]);
+    }
+    non_null(pointer, name)?;
+    // SAFETY: non-NULL (checked above); n readable values by the contract.
+    Ok(unsafe { std::slice::from_raw_parts(pointer, n) })
+}
+
+/// The caller's writable array of `n` values of `T` (empty for `n` = 0, where the pointer may
+/// be NULL). The values may be uninitialized: write them with [`std::slice::IterMut`] and
+/// `ptr::write`-like assignment of types without `Drop` only.
+///
+/// # Safety
+/// `pointer` is NULL or points to writable, aligned memory for `n` values of `T` that nothing
+/// else reads or writes during the call.
+pub(crate) unsafe fn write_slice<'a, T: Copy>(
+    pointer: *mut T,
+    n: usize,
+    name: &str,
+) -> Result<&'a mut [std::mem::MaybeUninit<T>], Failure> {
+    if n == 0 {
+        return Ok(&mut []);
+    }
+    non_null(pointer, name)?;
+    // SAFETY: non-NULL (checked above); writable for n values and used by this call alone,
+    // by the contract; `MaybeUninit` makes no claim that the memory is initialized.
+    Ok(unsafe { std::slice::from_raw_parts_mut(pointer.cast(), n) })
 }
 
 /// The caller's object behind a `const` handle.

@@ -57,16 +57,19 @@ mod types;
 
 use std::ffi::c_char;
 use std::ptr;
-
-use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use glint_brdf::{
-    BrdfError, Bxdf, BxdfSample, DVec2, DVec3, DensityMap, DiscreteBrdf, DistributionKind,
-    Footprint, Fresnel, GlintBxdf, GlintParameters, Microfacet, MultinomialMode, PdfQuadrature,
-    QueryScratch, RoughnessMap, TintMap, TreeError,
+    Bxdf, BxdfSample, DVec2, DVec3, DensityMap, DiscreteBrdf, DistributionKind, Footprint, Fresnel,
+    GlintBxdf, GlintParameters, Microfacet, MultinomialMode, PdfQuadrature, QueryScratch,
+    TreeError,
 };
+use glint_eval::{MapSpec, MapsSpec};
 
-use crate::boundary::{Failure, exclusive, free, guard, non_null, read, read_array, shared, write};
+use crate::boundary::{
+    Failure, exclusive, free, guard, non_null, read, read_array, read_slice, shared, write,
+    write_slice,
+};
 pub use crate::types::{
     GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
     GlintMaterialParams, GlintMultinomial, GlintPdfQuadrature, GlintSample, GlintScratch,
@@ -193,18 +196,94 @@ pub unsafe extern "C" fn glint_eval(
         non_null(evaluation, "evaluation")?;
         let query = query.checked()?;
         let e = query.run(|bxdf, wi, wo| bxdf.evaluate(wi, wo));
-        let answer = GlintEvaluation {
-            f_hat: e.f_hat.to_array(),
-            d_hat: e.d_hat.to_array(),
-            count: e.count,
-            nodes_visited: e.nodes_visited,
-            nodes_overlapping: e.nodes_overlapping,
-            skipped_as_negligible: e.negligible.is_some().into(),
-            negligible_bound: e.negligible.unwrap_or(0.0),
-        };
+        let answer = evaluation_of(&e);
         // SAFETY: non-NULL (checked above), writable by the contract.
         unsafe { write(evaluation, answer) };
         Ok(())
+    })
+}
+
+/// `glint_eval` for `n` rows at once, in parallel, at a renderer's speed: row i is the
+/// footprint `footprints[i]` with the directions `wi[3i..3i+3]`, `wo[3i..3i+3]`, answered in
+/// `evaluations[i]` with its status in `statuses[i]` (`GLINT_OK`, or `GLINT_INVALID_ARGUMENT`
+/// for a row `glint_eval` would refuse; that row's evaluation is then all zeros). Each row's
+/// answer is `glint_eval`'s for it, bit for bit, whatever `n` and the thread count.
+///
+/// No scratch is passed: the rows are answered by glint-eval's batch machinery (a pool of
+/// worker threads of this process, one query scratch per worker kept across calls, rows
+/// dispatched so that neighbouring footprints go to one thread; answers in input order). The
+/// pool has one thread per core unless `RAYON_NUM_THREADS` says otherwise, and is rebuilt in a
+/// child process forked after a call. Any number of threads may call this at once.
+///
+/// Returns `GLINT_OK` when every row succeeded, `GLINT_INVALID_ARGUMENT` when one did not
+/// (`glint_last_error` then names the first such row and its argument), or the status of a
+/// NULL pointer (every array may be NULL when `n` is 0).
+///
+/// # Safety
+/// `material` is NULL or a live material; `footprints` NULL or `n` readable footprints; `wi`
+/// and `wo` NULL or 3·`n` readable doubles each; `evaluations` NULL or writable for `n`
+/// evaluations and `statuses` for `n` statuses, neither read nor written by anything else
+/// during the call.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn glint_eval_batch(
+    material: *const GlintMaterial,
+    n: usize,
+    footprints: *const GlintFootprint,
+    wi: *const f64,
+    wo: *const f64,
+    evaluations: *mut GlintEvaluation,
+    statuses: *mut GlintStatus,
+) -> GlintStatus {
+    guard("glint_eval_batch", || {
+        let Some(doubles) = n.checked_mul(3) else {
+            return Err(Failure::argument(format!("`n` = {n} is too large")));
+        };
+        // SAFETY: each helper's contract is this function's, in argument order.
+        let (material, footprints, wi, wo, evaluations, statuses) = unsafe {
+            (
+                shared(material, "material")?,
+                read_slice(footprints, n, "footprints")?,
+                read_slice(wi, doubles, "wi")?,
+                read_slice(wo, doubles, "wo")?,
+                write_slice(evaluations, n, "evaluations")?,
+                write_slice(statuses, n, "statuses")?,
+            )
+        };
+        let pool = glint_eval::batch::process_pool().map_err(Failure::argument)?;
+        let rows: Vec<usize> = (0..n).collect();
+        let cancelled = AtomicBool::new(false);
+        let answers = pool.install(|| {
+            glint_eval::batch::answer_rows(
+                &rows,
+                |&i| glint_eval::batch::locality_key(footprints[i].uv),
+                &cancelled,
+                |scratch, &i| {
+                    let footprint = footprint_from(footprints[i])?;
+                    let wi = direction(std::array::from_fn(|k| wi[3 * i + k]), "wi")?;
+                    let wo = direction(std::array::from_fn(|k| wo[3 * i + k]), "wo")?;
+                    let e = material.brdf.at(&footprint, scratch).evaluate(wi, wo);
+                    Ok::<_, Failure>(evaluation_of(&e))
+                },
+            )
+        });
+        let mut first_failure = None;
+        for (i, answer) in answers.into_iter().enumerate() {
+            let answer = answer.expect("never cancelled");
+            let (evaluation, status) = match answer {
+                Ok(e) => (e, GlintStatus::GLINT_OK),
+                Err(failure) => {
+                    let status = failure.status();
+                    first_failure.get_or_insert((i, failure));
+                    (GlintEvaluation::ZERO, status)
+                }
+            };
+            evaluations[i].write(evaluation);
+            statuses[i].write(status);
+        }
+        match first_failure {
+            None => Ok(()),
+            Some((i, failure)) => Err(failure.in_row(i)),
+        }
     })
 }
 
@@ -544,38 +623,41 @@ unsafe fn set_maps(
         let slice = unsafe { std::slice::from_raw_parts(values, texels * channels) };
         Ok(Some((width as usize, height as usize, slice)))
     };
-    let refused = |e: BrdfError| Failure::parameter(e.to_string());
-    if let Some((w, h, values)) = texels(
-        "density_map",
-        p.density_map,
-        p.density_map_width,
-        p.density_map_height,
-        1,
-    )? {
-        let map = DensityMap::new(w, h, values).map_err(|e| refused(BrdfError::DensityMap(e)))?;
-        parameters.density_map = Some(Arc::new(map));
-    }
-    if let Some((w, h, values)) = texels(
-        "alpha_map",
-        p.alpha_map,
-        p.alpha_map_width,
-        p.alpha_map_height,
-        1,
-    )? {
-        parameters.alpha_map = Some(Arc::new(RoughnessMap::new(w, h, values).map_err(refused)?));
-    }
-    if let Some((w, h, values)) = texels(
-        "tint_map",
-        p.tint_map,
-        p.tint_map_width,
-        p.tint_map_height,
-        3,
-    )? {
-        let triples: Vec<[f64; 3]> = values.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        parameters.tint_map = Some(Arc::new(TintMap::new(w, h, &triples).map_err(refused)?));
-    }
-    parameters.roughness_levels = p.roughness_levels as usize;
-    Ok(())
+    let spec = |(width, height, values): (usize, usize, &[f64])| MapSpec {
+        width,
+        height,
+        values: values.to_vec(),
+    };
+    let maps = MapsSpec {
+        density_map: texels(
+            "density_map",
+            p.density_map,
+            p.density_map_width,
+            p.density_map_height,
+            1,
+        )?
+        .map(spec),
+        alpha_map: texels(
+            "alpha_map",
+            p.alpha_map,
+            p.alpha_map_width,
+            p.alpha_map_height,
+            1,
+        )?
+        .map(spec),
+        tint_map: texels(
+            "tint_map",
+            p.tint_map,
+            p.tint_map_width,
+            p.tint_map_height,
+            3,
+        )?
+        .map(spec),
+        roughness_levels: Some(f64::from(p.roughness_levels)),
+    };
+    // The messages name the map and texel as eval's do, without eval's "material." prefix.
+    maps.apply(parameters)
+        .map_err(|e| Failure::parameter(e.trim_start_matches("material.").to_owned()))
 }
 
 /// glint-brdf's parameters from the C struct: the enumerations and N are checked here,
@@ -705,6 +787,19 @@ fn direction(v: [f64; 3], name: &str) -> Result<DVec3, Failure> {
     // unit vector to rounding is used as given, any other normalized.
     glint_brdf::frame::given_direction(v)
         .ok_or_else(|| Failure::argument(format!("`{name}` is the zero vector, not a direction")))
+}
+
+/// The C form of an evaluation.
+fn evaluation_of(e: &glint_brdf::GlintEvaluation) -> GlintEvaluation {
+    GlintEvaluation {
+        f_hat: e.f_hat.to_array(),
+        d_hat: e.d_hat.to_array(),
+        count: e.count,
+        nodes_visited: e.nodes_visited,
+        nodes_overlapping: e.nodes_overlapping,
+        skipped_as_negligible: e.negligible.is_some().into(),
+        negligible_bound: e.negligible.unwrap_or(0.0),
+    }
 }
 
 /// glint-brdf's footprint from the caller's.

@@ -207,6 +207,19 @@ pub struct GlintEvaluation {
     pub negligible_bound: f64,
 }
 
+impl GlintEvaluation {
+    /// Every field 0 (the evaluation of a batch row that failed).
+    pub(crate) const ZERO: Self = Self {
+        f_hat: [0.0; 3],
+        d_hat: [0.0; 3],
+        count: 0.0,
+        nodes_visited: 0,
+        nodes_overlapping: 0,
+        skipped_as_negligible: 0,
+        negligible_bound: 0.0,
+    };
+}
+
 /// A sampled outgoing direction.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -10,6 +10,8 @@
 //! - [`EvalMaterial`]: the answers to one `eval`, `sample` or `pdf` request from plain numbers,
 //!   validating each input as the contract says.
 //! - [`JsonLines`]: one JSON line in, one JSON answer out, with a cache of built materials.
+//! - [`batch`]: many rows at once at a renderer's speed (per-thread scratches kept across
+//!   calls, rows dispatched by footprint locality, answers in input order, bit for bit).
 //!
 //! ```
 //! use glint_eval::{FresnelSpec, MaterialSpec};
@@ -31,6 +33,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod batch;
 mod json_lines;
 mod maps;
 mod material;
@@ -38,5 +41,7 @@ mod request;
 
 pub use json_lines::{JsonLines, MATERIAL_CACHE_BYTES, MATERIAL_CACHE_SIZE};
 pub use maps::{MapSpec, MapsSpec};
-pub use material::{FresnelSpec, MaterialSpec};
-pub use request::{EvalAnswer, EvalMaterial, SampleAnswer, split_uniform, uniforms_from_three};
+pub use material::{DEFAULT_NEGLIGIBLE_COUNT, FresnelSpec, MaterialSpec};
+pub use request::{
+    EvalAnswer, EvalMaterial, EvalRow, SampleAnswer, split_uniform, uniforms_from_three,
+};

@@ -29,6 +29,12 @@ pub enum FresnelSpec {
     },
 }
 
+/// The default `negligible_count`: glint-tracer's τ for scene files
+/// (`SCENE_NEGLIGIBLE_COUNT`, 10⁻¹²; a test of `cargo xtask eval` checks they agree). A query whose
+/// expected count is provably below it is skipped (its count is 0, as a traversal finds with
+/// probability at least 1 − 10⁻¹²) and answers with its bound as `negligible_bound`.
+pub const DEFAULT_NEGLIGIBLE_COUNT: f64 = 1e-12;
+
 /// A material as `docs/eval.md` specifies it; `None` fields take the documented defaults.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MaterialSpec {
@@ -58,7 +64,8 @@ pub struct MaterialSpec {
     /// QMC points of the sampling pdf (under `"qmc"`, and for cones the cubature does not
     /// cover); defaults to 64.
     pub pdf_points: Option<f64>,
-    /// Skip queries whose expected count is provably below this; defaults to 0.
+    /// Skip queries whose expected count is provably below this; defaults to
+    /// [`DEFAULT_NEGLIGIBLE_COUNT`] (10⁻¹², the tracer's τ); 0 traverses every query.
     pub negligible_count: Option<f64>,
     /// Density, roughness and tint maps over the texture square; none by default.
     pub maps: MapsSpec,
@@ -160,9 +167,10 @@ impl MaterialSpec {
         if let Some(area) = self.expected_footprint_area {
             parameters.expected_footprint_area = finite(area, "material.expected_footprint_area")?;
         }
-        if let Some(count) = self.negligible_count {
-            parameters.negligible_count = finite(count, "material.negligible_count")?;
-        }
+        parameters.negligible_count = match self.negligible_count {
+            Some(count) => finite(count, "material.negligible_count")?,
+            None => DEFAULT_NEGLIGIBLE_COUNT,
+        };
         if let Some(points) = self.pdf_points {
             let points = finite(points, "material.pdf_points")?;
             if !(points.fract() == 0.0 && (1.0..=4096.0).contains(&points)) {

@@ -3,13 +3,42 @@
 //! direction below the horizon is valid and gives zeros), footprints must be finite with edges
 //! within ±10¹⁵, uniform numbers lie in [0, 1).
 
+use std::sync::atomic::AtomicBool;
+
 use glint_brdf::{DVec2, DVec3, DiscreteBrdf, Footprint, QueryScratch};
+
+use crate::batch::{answer_rows, locality_key};
 
 /// A built material with what its answers need.
 #[derive(Clone, Debug)]
 pub struct EvalMaterial {
     brdf: DiscreteBrdf,
     gray: bool,
+}
+
+/// The inputs of one `eval` request: directions in the local shading frame (z the normal;
+/// `wi` toward the viewer, `wo` toward the light) and the footprint
+/// {uv + s·duv_dx + t·duv_dy : s, t ∈ [−½, ½]}.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EvalRow {
+    /// ω_i.
+    pub wi: [f64; 3],
+    /// ω_o.
+    pub wo: [f64; 3],
+    /// The footprint's centre.
+    pub uv: [f64; 2],
+    /// Its first edge.
+    pub duv_dx: [f64; 2],
+    /// Its second edge.
+    pub duv_dy: [f64; 2],
+}
+
+impl EvalRow {
+    /// The row's dispatch key in a batch: [`locality_key`] of its footprint's centre.
+    #[must_use]
+    pub fn locality_key(&self) -> u64 {
+        locality_key(self.uv)
+    }
 }
 
 /// The answer to an `eval` request.
@@ -73,23 +102,64 @@ impl EvalMaterial {
         duv_dx: [f64; 2],
         duv_dy: [f64; 2],
     ) -> Result<EvalAnswer, String> {
-        let wi = direction(wi, "wi")?;
-        let wo = direction(wo, "wo")?;
-        let uv = vector2(uv, "uv")?;
-        let duv_dx = edge(duv_dx, "duv_dx")?;
-        let duv_dy = edge(duv_dy, "duv_dy")?;
+        let row = EvalRow {
+            wi,
+            wo,
+            uv,
+            duv_dx,
+            duv_dy,
+        };
+        self.eval_row(scratch, &row, true)
+    }
+
+    /// [`EvalMaterial::eval`] of one row; with `expected_count` false, the expected count (a
+    /// tree traversal of its own, as costly as the count's) is not computed and is NaN. Every
+    /// other field is the same, bit for bit.
+    ///
+    /// # Errors
+    /// A message naming the invalid input (`wi`, `wo`, the footprint).
+    pub fn eval_row(
+        &self,
+        scratch: &mut QueryScratch,
+        row: &EvalRow,
+        expected_count: bool,
+    ) -> Result<EvalAnswer, String> {
+        let wi = direction(row.wi, "wi")?;
+        let wo = direction(row.wo, "wo")?;
+        let uv = vector2(row.uv, "uv")?;
+        let duv_dx = edge(row.duv_dx, "duv_dx")?;
+        let duv_dy = edge(row.duv_dy, "duv_dy")?;
         let footprint =
             Footprint::new(uv, duv_dx, duv_dy).map_err(|e| format!("footprint: {e}"))?;
         let bxdf = self.brdf.at(&footprint, scratch);
         let e = bxdf.evaluate(wi, wo);
         Ok(EvalAnswer {
             count: e.count,
-            expected_count: bxdf.expected_count(wi, wo),
+            expected_count: if expected_count {
+                bxdf.expected_count(wi, wo)
+            } else {
+                f64::NAN
+            },
             d_hat: e.d_hat.x,
             f_hat: e.f_hat,
             f_smooth: self.brdf.smooth_at(wi, wo, footprint.center()),
             nodes_visited: e.nodes_visited,
             negligible_bound: e.negligible,
+        })
+    }
+
+    /// [`EvalMaterial::eval_row`] of many rows in parallel, at a renderer's speed
+    /// ([`crate::batch::answer_rows`]: per-thread scratches kept across calls, rows dispatched
+    /// by footprint locality), answered in input order and bit for bit as one row at a time.
+    /// Rows not answered because `cancelled` was set are `None`.
+    pub fn eval_rows(
+        &self,
+        rows: &[EvalRow],
+        expected_count: bool,
+        cancelled: &AtomicBool,
+    ) -> Vec<Option<Result<EvalAnswer, String>>> {
+        answer_rows(rows, EvalRow::locality_key, cancelled, |scratch, row| {
+            self.eval_row(scratch, row, expected_count)
         })
     }
 

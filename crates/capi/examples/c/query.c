@@ -99,6 +99,33 @@ int main(void) {
         expect(pdf == s.pdf, "glint_pdf gives the sample's pdf");
     }
 
+    /* Many rows at once (a renderer's wavefront): glint_eval_batch answers them in parallel on
+     * glint's worker threads, no scratch needed, each row exactly as glint_eval answers it. */
+    enum { ROWS = 64 };
+    GlintFootprint rows[ROWS];
+    double wis[3 * ROWS], wos[3 * ROWS];
+    GlintEvaluation answers[ROWS];
+    GlintStatus statuses[ROWS];
+    for (int i = 0; i < ROWS; i++) {
+        rows[i] = footprint;
+        rows[i].uv[0] += 0.03 * i;
+        direction(0.4, 0.3, wis + 3 * i);
+        direction(0.36, 0.3 + PI, wos + 3 * i);
+    }
+    check(glint_eval_batch(material, ROWS, rows, wis, wos, answers, statuses),
+          "glint_eval_batch");
+    double found = 0.0;
+    for (int i = 0; i < ROWS; i++) {
+        GlintEvaluation one;
+        check(glint_eval(material, scratch, &rows[i], wis + 3 * i, wos + 3 * i, &one),
+              "glint_eval");
+        expect(statuses[i] == GLINT_OK && one.count == answers[i].count &&
+                   one.f_hat[0] == answers[i].f_hat[0],
+               "a batch row is glint_eval's answer");
+        found += answers[i].count;
+    }
+    printf("batch of %d footprints along u: %g particles found\n", ROWS, found);
+
     /* An error: gamma must be in (0, 60] degrees. */
     GlintMaterialParams wide = params;
     wide.gamma_degrees = 90.0;

@@ -1,0 +1,54 @@
+"""The sphere-lights example in Mitsuba 3 with a glint floor against Mitsuba's roughconductor
+floor in the same integrator, alternating, in one run.
+
+    python python/benchmarks/mitsuba_floor.py [--variant llvm_ad_rgb] [--integrator glint_direct]
+        [--resolution 160x90] [--spp 8] [--pairs 3]
+
+Prints each render's time and the medians of the times and of the pairs' ratios (glint /
+roughconductor). Each configuration is rendered once first (Dr.Jit compiles its kernels; not
+timed). ``llvm_*`` variants need ``DRJIT_LIBLLVM_PATH`` (python/README.md).
+"""
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import mitsuba as mi
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--variant", default="llvm_ad_rgb")
+    parser.add_argument("--integrator", default="glint_direct")
+    parser.add_argument("--resolution", default="160x90")
+    parser.add_argument("--spp", type=int, default=8)
+    parser.add_argument("--pairs", type=int, default=3)
+    args = parser.parse_args()
+    mi.set_variant(args.variant)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "mitsuba"))
+    import glint_mitsuba as gm
+
+    res = tuple(int(x) for x in args.resolution.split("x"))
+    scenes = {floor: mi.load_dict(gm.sphere_lights_scene(res, args.spp, floor,
+                                                         integrator=args.integrator))
+              for floor in ("glint", "roughconductor")}
+    for scene in scenes.values():
+        gm.render(scene)
+    times = {"glint": [], "roughconductor": []}
+    for pair in range(args.pairs):
+        for floor, scene in scenes.items():
+            start = time.perf_counter()
+            gm.render(scene, seed=pair + 1)
+            times[floor].append(time.perf_counter() - start)
+            print(f"pair {pair}: {floor} {times[floor][-1]:.2f} s", flush=True)
+    ratios = [g / r for g, r in zip(times["glint"], times["roughconductor"])]
+    print(f"{args.variant}, {args.integrator}, {args.resolution}, {args.spp} spp: glint "
+          f"{statistics.median(times['glint']):.2f} s, roughconductor "
+          f"{statistics.median(times['roughconductor']):.2f} s, glint / roughconductor "
+          f"{statistics.median(ratios):.2f}× (median of {args.pairs} pairs)")
+
+
+if __name__ == "__main__":
+    main()
