@@ -305,7 +305,8 @@ pub(crate) struct PatternRegion {
 }
 
 /// The pattern's regions: fine gold glitter (d = 1, α = 13/255 ≈ 0.05), coarse silver-blue
-/// glitter (d = 102/255 = 0.4, α = 64/255 ≈ 0.25), and bare base (d = 0: a mask).
+/// glitter (d = 102/255 = 0.4, α = 64/255 ≈ 0.25), and bare base (d = 0: a mask; its tint
+/// is its neighbours', see [`pattern_region`]).
 pub(crate) const PATTERN_REGIONS: [PatternRegion; 3] = [
     PatternRegion {
         density: 1.0,
@@ -330,19 +331,29 @@ pub(crate) const PATTERN_SIZE: (usize, usize) = (256, 128);
 
 /// The region of the pattern at texel (`column`, `row`) (row 0 at the top, v near 1):
 /// chevron bands around the vase, six along v, zigzagging four times around it; in each band a
-/// gold stripe, a gap, a silver stripe and a gap.
+/// gold stripe, a gap, a silver stripe and a gap. A gap takes the tint of the stripe beside it,
+/// each half of it its side's, so that the tint changes only where the density is 0 on both
+/// sides: a footprint's flakes take the mean tint over the footprint, not weighted by their
+/// density, and a gold stripe's edge beside a white gap would look paler than the stripe.
 pub(crate) fn pattern_region(column: usize, row: usize) -> PatternRegion {
     let (width, height) = PATTERN_SIZE;
     let u = (column as f64 + 0.5) / width as f64;
     let v = 1.0 - (row as f64 + 0.5) / height as f64;
     let zigzag = (2.0 * (4.0 * u).fract() - 1.0).abs();
     let z = (6.0 * v + 0.6 * zigzag).fract();
-    PATTERN_REGIONS[match z {
-        z if z < 0.4 => 0,
-        z if z < 0.5 => 2,
-        z if z < 0.85 => 1,
-        _ => 2,
-    }]
+    // (the region, the region whose tint it takes)
+    let (region, tint) = match z {
+        z if z < 0.4 => (0, 0),
+        z if z < 0.45 => (2, 0),
+        z if z < 0.5 => (2, 1),
+        z if z < 0.85 => (1, 1),
+        z if z < 0.925 => (2, 1),
+        _ => (2, 0),
+    };
+    PatternRegion {
+        tint: PATTERN_REGIONS[tint].tint,
+        ..PATTERN_REGIONS[region]
+    }
 }
 
 /// A grey map of the pattern: `value` of each texel's region.
