@@ -9,6 +9,11 @@
 //!   glittery object).
 //! - `stained_glass.png`: an arched window of Voronoi glass cells with lead lines (Fig. 10).
 //! - `sky.png`: a smooth lat-long sky and ground (the environment of the glittery object).
+//! - `glitter_pattern_density.png`, `glitter_pattern_alpha.png`, `glitter_pattern_tint.png`:
+//!   chevron bands of glitter over the vase's (u, v), the maps of `glitter_pattern.toml`
+//!   (density and roughness as linear data, the tint as sRGB colour);
+//!   `glitter_pattern_ones.png`: a density map of ones of the same size (the cost comparison's
+//!   constant map).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -30,6 +35,19 @@ pub(crate) fn generate() -> anyhow::Result<Vec<(&'static str, Vec<u8>)>> {
         ("vase.obj", vase_obj().into_bytes()),
         ("stained_glass.png", png_bytes(&stained_glass())?),
         ("sky.png", png_bytes(&sky())?),
+        (
+            "glitter_pattern_density.png",
+            data_png_bytes(&pattern_map(|r| r.density))?,
+        ),
+        (
+            "glitter_pattern_alpha.png",
+            data_png_bytes(&pattern_map(|r| r.alpha))?,
+        ),
+        ("glitter_pattern_tint.png", png_bytes(&pattern_tint())?),
+        (
+            "glitter_pattern_ones.png",
+            data_png_bytes(&pattern_map(|_| 1.0))?,
+        ),
     ])
 }
 
@@ -67,6 +85,10 @@ pub(crate) fn ensure() -> anyhow::Result<()> {
         "vase.obj",
         "stained_glass.png",
         "sky.png",
+        "glitter_pattern_density.png",
+        "glitter_pattern_alpha.png",
+        "glitter_pattern_tint.png",
+        "glitter_pattern_ones.png",
     ];
     if names.iter().all(|n| folder.join(n).is_file()) {
         return Ok(());
@@ -76,6 +98,11 @@ pub(crate) fn ensure() -> anyhow::Result<()> {
 
 fn png_bytes(image: &RgbImage) -> anyhow::Result<Vec<u8>> {
     image.encode_png(0.0).map_err(anyhow::Error::msg)
+}
+
+/// A data image (a density or roughness map) as a PNG of its values, not sRGB-encoded.
+fn data_png_bytes(image: &RgbImage) -> anyhow::Result<Vec<u8>> {
+    image.encode_png_linear().map_err(anyhow::Error::msg)
 }
 
 /// A triangle mesh of a regular parameterization p(u, v) on a (nu + 1) × (nv + 1) vertex grid,
@@ -268,6 +295,94 @@ pub(crate) fn stained_glass() -> RgbImage {
     }
 }
 
+/// One region of the glitter pattern: its density, flake roughness and tint. The values are
+/// multiples of 1/255, so that 8-bit PNGs hold them exactly.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PatternRegion {
+    pub(crate) density: f64,
+    pub(crate) alpha: f64,
+    pub(crate) tint: DVec3,
+}
+
+/// The pattern's regions: fine gold glitter (d = 1, α = 13/255 ≈ 0.05), coarse silver-blue
+/// glitter (d = 102/255 = 0.4, α = 64/255 ≈ 0.25), and bare base (d = 0: a mask; its tint
+/// is its neighbours', see [`pattern_region`]).
+pub(crate) const PATTERN_REGIONS: [PatternRegion; 3] = [
+    PatternRegion {
+        density: 1.0,
+        alpha: 13.0 / 255.0,
+        tint: DVec3::new(1.0, 0.72, 0.3),
+    },
+    PatternRegion {
+        density: 102.0 / 255.0,
+        alpha: 64.0 / 255.0,
+        tint: DVec3::new(0.75, 0.85, 1.0),
+    },
+    PatternRegion {
+        density: 0.0,
+        alpha: 13.0 / 255.0,
+        tint: DVec3::ONE,
+    },
+];
+
+/// The size of the pattern's maps: 256 × 128 texels (the vase is about twice as wide around as
+/// it is high, so the texels are about square on it).
+pub(crate) const PATTERN_SIZE: (usize, usize) = (256, 128);
+
+/// The region of the pattern at texel (`column`, `row`) (row 0 at the top, v near 1):
+/// chevron bands around the vase, six along v, zigzagging four times around it; in each band a
+/// gold stripe, a gap, a silver stripe and a gap. A gap takes the tint of the stripe beside it,
+/// each half of it its side's, so that the tint changes only where the density is 0 on both
+/// sides: a footprint's flakes take the mean tint over the footprint, not weighted by their
+/// density, and a gold stripe's edge beside a white gap would look paler than the stripe.
+pub(crate) fn pattern_region(column: usize, row: usize) -> PatternRegion {
+    let (width, height) = PATTERN_SIZE;
+    let u = (column as f64 + 0.5) / width as f64;
+    let v = 1.0 - (row as f64 + 0.5) / height as f64;
+    let zigzag = (2.0 * (4.0 * u).fract() - 1.0).abs();
+    let z = (6.0 * v + 0.6 * zigzag).fract();
+    // (the region, the region whose tint it takes)
+    let (region, tint) = match z {
+        z if z < 0.4 => (0, 0),
+        z if z < 0.45 => (2, 0),
+        z if z < 0.5 => (2, 1),
+        z if z < 0.85 => (1, 1),
+        z if z < 0.925 => (2, 1),
+        _ => (2, 0),
+    };
+    PatternRegion {
+        tint: PATTERN_REGIONS[tint].tint,
+        ..PATTERN_REGIONS[region]
+    }
+}
+
+/// A grey map of the pattern: `value` of each texel's region.
+pub(crate) fn pattern_map(value: impl Fn(&PatternRegion) -> f64) -> RgbImage {
+    let (width, height) = PATTERN_SIZE;
+    let pixels = (0..height)
+        .flat_map(|row| (0..width).map(move |column| (column, row)))
+        .map(|(column, row)| DVec3::splat(value(&pattern_region(column, row))))
+        .collect();
+    RgbImage {
+        width,
+        height,
+        pixels,
+    }
+}
+
+/// The pattern's tint map (linear colour).
+pub(crate) fn pattern_tint() -> RgbImage {
+    let (width, height) = PATTERN_SIZE;
+    let pixels = (0..height)
+        .flat_map(|row| (0..width).map(move |column| pattern_region(column, row).tint))
+        .collect();
+    RgbImage {
+        width,
+        height,
+        pixels,
+    }
+}
+
 /// The sky: 256 × 128 lat-long texels (top row +y), blue at the zenith fading to a pale horizon,
 /// a warm brown ground below, and a soft bright glow 30° above the horizon.
 pub(crate) fn sky() -> RgbImage {
@@ -318,7 +433,11 @@ mod tests {
                 "twisted_torus.obj",
                 "vase.obj",
                 "stained_glass.png",
-                "sky.png"
+                "sky.png",
+                "glitter_pattern_density.png",
+                "glitter_pattern_alpha.png",
+                "glitter_pattern_tint.png",
+                "glitter_pattern_ones.png",
             ]
         );
     }

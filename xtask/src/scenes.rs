@@ -29,14 +29,23 @@ pub(crate) struct ScenesArgs {
     pub(crate) out: PathBuf,
 }
 
-/// The glint parameters of a scene: (N, γ in degrees, α_x, α_y) per glint material part.
+/// The glint parameters of a scene: (N, γ in degrees, α_x, α_y) per glint material part, and
+/// per roughness level (α rounded to 10⁻³) for a part with a roughness map.
 fn glint_parameters(scene: &Scene) -> Vec<(u64, f64, f64, f64)> {
     fn collect(m: &Material, out: &mut Vec<(u64, f64, f64, f64)>) {
         match m {
             Material::Glint(g) => {
                 let p = g.brdf.parameters();
-                let (ax, ay) = p.distribution.alpha();
-                out.push((p.particles, p.gamma_radians.to_degrees(), ax, ay));
+                let gamma = p.gamma_radians.to_degrees();
+                if p.alpha_map.is_some() {
+                    for (alpha, _) in g.brdf.level_trees() {
+                        let a = (alpha.unwrap_or(0.0) * 1e3).round() / 1e3;
+                        out.push((p.particles, gamma, a, a));
+                    }
+                } else {
+                    let (ax, ay) = p.distribution.alpha();
+                    out.push((p.particles, gamma, ax, ay));
+                }
             }
             Material::Mix(parts) => parts.iter().for_each(|(_, m)| collect(m, out)),
             _ => {}

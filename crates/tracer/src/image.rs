@@ -27,6 +27,15 @@ fn check_size(width: usize, height: usize) -> Result<(), String> {
     Ok(())
 }
 
+/// What a PNG's 8- or 16-bit values mean (an EXR's values are linear either way).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PngValues {
+    /// sRGB-encoded colour, decoded to linear (colour textures, tints, lights).
+    Srgb,
+    /// Linear data, read as value / (2^bits − 1) (density and roughness maps).
+    Linear,
+}
+
 /// A linear RGB image, row-major from the top row.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbImage {
@@ -78,6 +87,14 @@ impl RgbImage {
     /// # Errors
     /// [`TracerError::Asset`] naming the file and the problem.
     pub fn load(path: &Path) -> Result<Self, TracerError> {
+        Self::load_as(path, PngValues::Srgb)
+    }
+
+    /// [`RgbImage::load`], a PNG's values read as `values` say (sRGB colour or linear data).
+    ///
+    /// # Errors
+    /// [`TracerError::Asset`] naming the file and the problem.
+    pub fn load_as(path: &Path, values: PngValues) -> Result<Self, TracerError> {
         let error = |problem: String| TracerError::Asset {
             path: path.to_path_buf(),
             problem,
@@ -86,13 +103,17 @@ impl RgbImage {
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        let decode = match extension.as_deref() {
-            Some("png") => Self::from_png_bytes,
-            Some("exr") => Self::from_exr_bytes,
+        let png = match extension.as_deref() {
+            Some("png") => true,
+            Some("exr") => false,
             _ => return Err(error("unknown image format (expected .png or .exr)".into())),
         };
         let bytes = limits::read_file(path, limits::MAX_IMAGE_FILE_BYTES).map_err(error)?;
-        decode(&bytes).map_err(error)
+        if png {
+            Self::from_png_bytes_as(&bytes, values).map_err(error)
+        } else {
+            Self::from_exr_bytes(&bytes).map_err(error)
+        }
     }
 
     /// Decodes a PNG held in memory, as [`RgbImage::load`] does.
@@ -100,6 +121,18 @@ impl RgbImage {
     /// # Errors
     /// The problem: not a PNG, larger than the limits, truncated, empty.
     pub fn from_png_bytes(bytes: &[u8]) -> Result<Self, String> {
+        Self::from_png_bytes_as(bytes, PngValues::Srgb)
+    }
+
+    /// Decodes a PNG held in memory, its values read as `values` say.
+    ///
+    /// # Errors
+    /// As [`RgbImage::from_png_bytes`].
+    pub fn from_png_bytes_as(bytes: &[u8], values: PngValues) -> Result<Self, String> {
+        let decode = match values {
+            PngValues::Srgb => srgb_to_linear,
+            PngValues::Linear => |c: f64| c,
+        };
         let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
         decoder.set_transformations(png::Transformations::EXPAND);
         let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
@@ -140,11 +173,7 @@ impl RgbImage {
                 } else {
                     DVec3::splat(texel[0])
                 };
-                pixels.push(DVec3::new(
-                    srgb_to_linear(rgb.x),
-                    srgb_to_linear(rgb.y),
-                    srgb_to_linear(rgb.z),
-                ));
+                pixels.push(DVec3::new(decode(rgb.x), decode(rgb.y), decode(rgb.z)));
             }
         }
         Self::checked(width, height, pixels)
@@ -479,6 +508,35 @@ impl RgbImage {
         writer
             .write_image_data(&self.to_srgb8(exposure))
             .map_err(|e| e.to_string())?;
+        writer.finish().map_err(|e| e.to_string())?;
+        Ok(bytes)
+    }
+
+    /// The image as data: an 8-bit RGB PNG of round(255·c) per channel, c clamped to [0, 1],
+    /// without sRGB encoding (what [`PngValues::Linear`] reads back).
+    ///
+    /// # Errors
+    /// The encoder's message (only for images too large for PNG).
+    pub fn encode_png_linear(&self) -> Result<Vec<u8>, String> {
+        let mut bytes = Vec::new();
+        let mut encoder = png::Encoder::new(&mut bytes, self.width as u32, self.height as u32);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+        let data: Vec<u8> = self
+            .pixels
+            .iter()
+            .flat_map(|p| p.to_array())
+            .map(|c| {
+                let c = if c.is_finite() {
+                    c.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (c * 255.0).round() as u8
+            })
+            .collect();
+        writer.write_image_data(&data).map_err(|e| e.to_string())?;
         writer.finish().map_err(|e| e.to_string())?;
         Ok(bytes)
     }

@@ -99,6 +99,8 @@ pub mod settings;
 pub mod shape;
 #[cfg(test)]
 mod test_scenes;
+#[cfg(test)]
+mod textured_glint_tests;
 
 pub use error::TracerError;
 pub use film::{RenderOutput, RenderStatistics, render};

@@ -149,8 +149,14 @@ pub enum Material {
     Microfacet(MicrofacetBrdf),
     /// Diffuse under a rough dielectric coating.
     Plastic(Plastic),
-    /// The discrete multiscale BRDF: f̂ with a footprint, the smooth BRDF without.
+    /// The discrete multiscale BRDF: f̂ with a footprint, its smooth limit at the shading
+    /// point without ([`GlintMaterial::smooth_at`]).
     Glint(GlintMaterial),
+    /// The smooth limit of a glint material with maps, everywhere (what
+    /// [`Material::smooth_limit`] makes of one): f = Σ_k d_k(x)·f_k·t(x) at the shading point's
+    /// texture position x ([`glint_brdf::DiscreteBrdf::smooth_at`]), sampled by the glint
+    /// sampler at x. A glint material without maps becomes [`Material::Microfacet`] instead.
+    SmoothGlint(GlintMaterial),
     /// Σ w_k f_k with weights w_k ≥ 0 (a component is sampled with probability w_k / Σ w).
     /// Mirror components contribute nothing (scene files reject them).
     Mix(Vec<(f64, Material)>),
@@ -291,10 +297,37 @@ impl GlintMaterial {
         Footprint::new(ctx.uv * s, dx * s, dy * s).ok()
     }
 
-    /// f̂ for the context's footprint (counting the query), or the smooth BRDF without one.
+    /// The shading point's position `uv` (the shape's) in this material's particle square,
+    /// where its maps are read: `uv` scaled by `uv_scale`, as the footprint's centre is.
+    fn texture_position(&self, uv: DVec2) -> DVec2 {
+        uv * self.uv_scale
+    }
+
+    /// The smooth limit at the shading point `uv` (the shape's (u, v)): the map-weighted
+    /// smooth BRDF ([`glint_brdf::DiscreteBrdf::smooth_at`]); without maps, the smooth
+    /// microfacet BRDF's value, bit for bit.
+    #[must_use]
+    pub fn smooth_at(&self, wi: DVec3, wo: DVec3, uv: DVec2) -> DVec3 {
+        self.brdf.smooth_at(wi, wo, self.texture_position(uv))
+    }
+
+    /// The glint sampler's direction at the shading point `uv` (the shape's (u, v)): under a
+    /// roughness map, the level is chosen by the densities there.
+    fn sample_direction(&self, wi: DVec3, u: [f64; 4], uv: DVec2) -> Option<DVec3> {
+        self.brdf
+            .sample_direction_at(wi, u, self.texture_position(uv))
+    }
+
+    /// The density of [`GlintMaterial::sample_direction`] in solid angle.
+    fn sampling_pdf(&self, wi: DVec3, wo: DVec3, uv: DVec2) -> f64 {
+        self.brdf.sampling_pdf_at(wi, wo, self.texture_position(uv))
+    }
+
+    /// f̂ for the context's footprint (counting the query), or the smooth limit at the shading
+    /// point without one.
     fn eval(&self, wi: DVec3, wo: DVec3, ctx: &mut ShadingContext<'_>) -> DVec3 {
         let Some(footprint) = self.footprint(ctx) else {
-            return self.brdf.smooth().eval(wi, wo);
+            return self.smooth_at(wi, wo, ctx.uv);
         };
         let result = self.brdf.at(&footprint, ctx.scratch).evaluate(wi, wo);
         ctx.counters.record(&result);
@@ -313,7 +346,7 @@ impl GlintMaterial {
         visible: impl FnOnce() -> bool,
     ) -> Option<DVec3> {
         let Some(footprint) = self.footprint(ctx) else {
-            return nonzero_where_visible(self.brdf.smooth().eval(wi, wo), visible);
+            return nonzero_where_visible(self.smooth_at(wi, wo, ctx.uv), visible);
         };
         let result = self
             .brdf
@@ -375,10 +408,12 @@ impl Plastic {
 }
 
 impl Material {
-    /// The glint material replaced by its smooth limit (for `--smooth`), recursively.
+    /// The glint material replaced by its smooth limit (for `--smooth`), recursively: the
+    /// smooth microfacet BRDF without maps, [`Material::SmoothGlint`] with them.
     #[must_use]
     pub fn smooth_limit(&self) -> Self {
         match self {
+            Self::Glint(g) if g.brdf.has_maps() => Self::SmoothGlint(g.clone()),
             Self::Glint(g) => Self::Microfacet(*g.brdf.smooth()),
             Self::Mix(parts) => {
                 Self::Mix(parts.iter().map(|(w, m)| (*w, m.smooth_limit())).collect())
@@ -458,6 +493,7 @@ impl Material {
             Self::Microfacet(brdf) => brdf.eval(wi, wo),
             Self::Plastic(plastic) => plastic.eval(wi, wo, ctx.uv),
             Self::Glint(glint) => glint.eval(wi, wo, ctx),
+            Self::SmoothGlint(glint) => glint.smooth_at(wi, wo, ctx.uv),
             Self::Mix(parts) => parts.iter().map(|(w, m)| *w * m.eval(wi, wo, ctx)).sum(),
             Self::Mirror(_) => DVec3::ZERO,
         }
@@ -497,7 +533,7 @@ impl Material {
             Self::Diffuse(_) => wo.z / PI,
             Self::Microfacet(brdf) => brdf.pdf(wi, wo),
             Self::Plastic(plastic) => plastic.pdf(wi, wo, uv),
-            Self::Glint(glint) => glint.brdf.sampling_pdf(wi, wo),
+            Self::Glint(glint) | Self::SmoothGlint(glint) => glint.sampling_pdf(wi, wo, uv),
             Self::Mix(parts) => {
                 let total: f64 = parts.iter().map(|(w, _)| *w).sum();
                 if !(total > 0.0) {
@@ -593,7 +629,9 @@ impl Material {
                     (sample_cosine_hemisphere([u[0], u[1]]), Lobe::Diffuse)
                 }
             }
-            Self::Glint(glint) => (glint.brdf.sample_direction(wi, u)?, Lobe::Glint),
+            Self::Glint(glint) | Self::SmoothGlint(glint) => {
+                (glint.sample_direction(wi, u, uv)?, Lobe::Glint)
+            }
             Self::Mix(parts) => {
                 let total: f64 = parts.iter().map(|(w, _)| *w).sum();
                 if !(total > 0.0) {

@@ -260,7 +260,11 @@ pub fn plan_queries(
         let Some(footprint) = hit.footprint(glint.uv_scale) else {
             continue;
         };
-        let sampled = glint.brdf.sample_direction(hit.wi, hit.u_sampler);
+        // The sampler at the footprint's centre, as the bound BRDF samples (under a roughness
+        // map, the levels weighted by their densities there).
+        let sampled = glint
+            .brdf
+            .sample_direction_at(hit.wi, hit.u_sampler, footprint.center());
         for wo in [hit.to_light, sampled].into_iter().flatten() {
             let bound = glint
                 .brdf

@@ -20,7 +20,8 @@
 //! - `render`: the `[render]` section, into [`RenderSettings`](crate::settings::RenderSettings).
 //! - `camera`: the `[camera]` section and its keyframes.
 //! - `materials`: the `[materials.<name>]` sections, mixes, Fresnel terms; `glint`: glint
-//!   materials; `textures`: albedo textures.
+//!   materials; `glint_maps`: their density, roughness and tint maps; `textures`: albedo
+//!   textures.
 //! - `shapes`: the `[[shapes]]` sections: spheres, rectangles, OBJ meshes.
 //! - `lights`: the `[[lights]]` sections: area lights, a directional light, an environment.
 //! - `limit_tests`: the limits of every section, probed through one template scene.
@@ -41,6 +42,7 @@ mod budget;
 mod builder;
 mod camera;
 mod glint;
+mod glint_maps;
 mod lights;
 #[cfg(test)]
 mod limit_tests;

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::builder::{Builder, Checked};
 use crate::error::TracerError;
-use crate::image::RgbImage;
+use crate::image::{PngValues, RgbImage};
 use crate::limits;
 
 /// What a scene has used of its budgets ([`crate::limits`]): asset bytes, image pixels,
@@ -40,10 +40,22 @@ impl Builder<'_> {
         Ok(())
     }
 
+    /// The colour image `relative` (a PNG sRGB-decoded) used at `field`, within the budgets.
     pub(super) fn image(&self, field: &str, relative: &str) -> Checked<RgbImage> {
+        self.image_as(field, relative, PngValues::Srgb)
+    }
+
+    /// The image `relative` used at `field`, a PNG's values read as `values` say, within the
+    /// budgets (its bytes and pixels counted, its path listed among the scene's assets).
+    pub(super) fn image_as(
+        &self,
+        field: &str,
+        relative: &str,
+        values: PngValues,
+    ) -> Checked<RgbImage> {
         let path = self.asset(relative);
         self.spend_asset_bytes(field, &path)?;
-        let image = RgbImage::load(&path).map_err(|e| TracerError::Scene {
+        let image = RgbImage::load_as(&path, values).map_err(|e| TracerError::Scene {
             file: self.file.to_path_buf(),
             field: field.into(),
             problem: e.to_string(),

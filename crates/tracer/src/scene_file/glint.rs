@@ -31,7 +31,8 @@ enum PdfQuadratureName {
 pub(super) struct GlintSection {
     #[serde(default)]
     distribution: DistributionName,
-    alpha: Roughness,
+    /// Required unless `alpha_texture` gives α instead.
+    alpha: Option<Roughness>,
     particles: f64,
     /// The cone radius γ in degrees; `gamma`, its older name, is still read (deprecated).
     #[serde(alias = "gamma")]
@@ -48,12 +49,63 @@ pub(super) struct GlintSection {
     expected_footprint_area: Option<f64>,
     negligible_count: Option<f64>,
     uv_scale: Option<f64>,
+    density_texture: Option<String>,
+    alpha_texture: Option<String>,
+    tint_texture: Option<String>,
+    roughness_levels: Option<usize>,
 }
 
 impl Builder<'_> {
     pub(super) fn glint(&self, field: &str, g: &GlintSection) -> Checked<Material> {
-        let distribution = self.microfacet(field, g.distribution, g.alpha)?;
+        if g.alpha.is_some() && g.alpha_texture.is_some() {
+            return self.fail(
+                format!("{field}.alpha"),
+                "`alpha_texture` replaces `alpha`: give one of them",
+            );
+        }
+        let alpha_map = match &g.alpha_texture {
+            Some(file) => Some(self.alpha_map(field, file)?),
+            None => None,
+        };
+        let alpha = match (g.alpha, &alpha_map) {
+            (Some(alpha), _) => alpha,
+            // The distribution's kind is what counts; its α, the map's largest, is what tables
+            // of the material show.
+            (None, Some(map)) => {
+                let (width, height) = map.size();
+                let largest = (0..width * height)
+                    .map(|k| map.texel(k % width, k / width))
+                    .fold(0.0, f64::max);
+                Roughness(largest, largest)
+            }
+            (None, None) => {
+                return self.fail(
+                    format!("{field}.alpha"),
+                    "a glint material needs `alpha` (or `alpha_texture`)",
+                );
+            }
+        };
+        let distribution = self.microfacet(field, g.distribution, alpha)?;
         let mut parameters = GlintParameters::new(distribution);
+        parameters.alpha_map = alpha_map;
+        if let Some(file) = &g.density_texture {
+            parameters.density_map = Some(self.density_map(field, file)?);
+        }
+        if let Some(file) = &g.tint_texture {
+            parameters.tint_map = Some(self.tint_map(field, file)?);
+        }
+        if let Some(levels) = g.roughness_levels {
+            if !(1..=glint_brdf::surface_maps::MAX_ROUGHNESS_LEVELS).contains(&levels) {
+                return self.fail(
+                    format!("{field}.roughness_levels"),
+                    format!(
+                        "must be in [1, {}], got {levels}",
+                        glint_brdf::surface_maps::MAX_ROUGHNESS_LEVELS
+                    ),
+                );
+            }
+            parameters.roughness_levels = levels;
+        }
         // 2⁵³, the count tree's limit: every whole number up to it is a double.
         if !(g.particles >= 1.0
             && g.particles <= 9_007_199_254_740_992.0
@@ -117,7 +169,15 @@ impl Builder<'_> {
         }
         parameters.negligible_count = negligible_count;
         let uv_scale = self.positive(&format!("{field}.uv_scale"), g.uv_scale.unwrap_or(1.0))?;
-        let brdf = DiscreteBrdf::new(parameters).map_err(|e| self.brdf_error(field, &e))?;
+        let brdf = DiscreteBrdf::new(parameters).map_err(|e| match e {
+            glint_brdf::BrdfError::MapSizesDiffer { .. } => {
+                self.brdf_error(&format!("{field}.alpha_texture"), &e)
+            }
+            glint_brdf::BrdfError::DensityMap(_) => {
+                self.brdf_error(&format!("{field}.density_texture"), &e)
+            }
+            other => self.brdf_error(field, &other),
+        })?;
         Ok(Material::Glint(GlintMaterial {
             brdf: Arc::new(brdf),
             uv_scale,
