@@ -360,3 +360,39 @@ fn the_negligible_bound_uses_the_density_over_the_footprint() {
     assert_eq!(e.negligible, Some(0.0), "{e:?}");
     assert_eq!(e.nodes_visited, 0);
 }
+
+/// With a density map of the tint's size, a footprint's tint is the flakes' mean,
+/// ∫_A d·t / ∫_A d: across a mask edge that is also a tint edge, only the dense side's tint.
+#[test]
+fn the_tint_is_the_flakes_mean_under_a_density_map() {
+    let tints = [[0.9, 0.3, 0.1], [0.2, 0.4, 0.8]];
+    let mut plain = GlintParameters::new(beckmann(0.2));
+    plain.particles = 100_000_000;
+    plain.gamma_radians = 5f64.to_radians();
+    plain.density_map = Some(Arc::new(DensityMap::new(2, 1, &[1.0, 0.0]).unwrap()));
+    let mut tinted = plain.clone();
+    tinted.tint_map = Some(Arc::new(TintMap::new(2, 1, &tints).unwrap()));
+    let (plain, tinted) = (
+        DiscreteBrdf::new(plain).unwrap(),
+        DiscreteBrdf::new(tinted).unwrap(),
+    );
+    let mut scratch = QueryScratch::new();
+    let footprint = Footprint::new(
+        DVec2::new(0.5, 0.5),
+        DVec2::new(0.2, 0.0),
+        DVec2::new(0.0, 0.05),
+    )
+    .unwrap();
+    let mut checked = 0;
+    for (wi, wo) in directions() {
+        let a = plain.at(&footprint, &mut scratch).eval(wi, wo);
+        let b = tinted.at(&footprint, &mut scratch).eval(wi, wo);
+        let expected = a * DVec3::from_array(tints[0]);
+        assert!(
+            (b - expected).abs().max_element() <= 1e-9 * expected.max_element(),
+            "{b} against {expected}"
+        );
+        checked += usize::from(a != DVec3::ZERO);
+    }
+    assert!(checked > 0);
+}

@@ -59,7 +59,7 @@ use crate::glint::GlintBxdf;
 use crate::glint_sampling::{GlintSampler, PdfQuadrature};
 use crate::negligible::NegligibleTest;
 use crate::smooth::{MicrofacetBrdf, above_horizon, given};
-use crate::surface_maps::{RoughnessLevel, RoughnessMap, TintMap, roughness_levels};
+use crate::surface_maps::{RoughnessLevel, RoughnessMap, TintMap, WeightedTint, roughness_levels};
 
 /// The parameters of a glint material.
 ///
@@ -168,6 +168,8 @@ pub struct DiscreteBrdf {
     cone_solid_angle: f64,
     /// γ with its trigonometry, so that building a query's conic needs none.
     cone: ConeRadius,
+    /// The tint weighted by the density map, when both are given with one size.
+    weighted_tint: Option<WeightedTint>,
 }
 
 /// One roughness level of a material: the particles whose normals follow D(α_k), with density
@@ -335,11 +337,16 @@ impl DiscreteBrdf {
             .enumerate()
             .map(|(k, level)| Layer::new(&parameters, k, level))
             .collect::<Result<Vec<_>, _>>()?;
+        let weighted_tint = match (&parameters.tint_map, &parameters.density_map) {
+            (Some(tint), Some(density)) => WeightedTint::new(tint, density)?,
+            _ => None,
+        };
         Ok(Self {
             parameters,
             layers,
             cone_solid_angle: cone_solid_angle(gamma),
             cone: ConeRadius::new(gamma).map_err(|_| BrdfError::InvalidConeRadius { gamma })?,
+            weighted_tint,
         })
     }
 
@@ -382,6 +389,7 @@ impl DiscreteBrdf {
             layers,
             cone_solid_angle: self.cone_solid_angle,
             cone: self.cone,
+            weighted_tint: self.weighted_tint.clone(),
         })
     }
 
@@ -657,7 +665,11 @@ impl DiscreteBrdf {
         if let Some(tint) = &self.parameters.tint_map
             && answer.f_hat != DVec3::ZERO
         {
-            answer.f_hat *= tint.mean_over(footprint);
+            let flakes_tint = self
+                .weighted_tint
+                .as_ref()
+                .and_then(|weighted| weighted.mean_over(footprint));
+            answer.f_hat *= flakes_tint.unwrap_or_else(|| tint.mean_over(footprint));
         }
         Some(answer)
     }

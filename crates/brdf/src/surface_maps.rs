@@ -15,8 +15,11 @@
 //! measures for K = 2…16 (`GlintParameters::roughness_levels`, default 8).
 //!
 //! **Tint.** A colour t(x) ∈ [0, 1]³ that scales the flakes' reflectance. A footprint's flakes
-//! take the tint filtered over it, t̄ = ∫_A t / area(A) ([`TintMap::mean_over`]): exact where
-//! t is constant over the footprint, and the mean a pixel converges to where it is not. It
+//! take the tint filtered over it: the flakes' mean tint t̄ = ∫_A d·t / ∫_A d when the material
+//! has a density map of the tint's size, else t̄ = ∫_A t / area(A) ([`TintMap::mean_over`]).
+//! Exact where t is constant over the footprint, and the mean a pixel converges to where it is
+//! not (with a density map of another size, a footprint across a density edge and a tint edge
+//! weighs the tint by area rather than by flakes). It
 //! multiplies f̂ after any coloured (Dirichlet) particle areas, so `coloured` flakes keep their
 //! per-flake colour under the map's tint. Without a footprint (the smooth limit) the tint is
 //! t(x) at the shading point.
@@ -158,6 +161,54 @@ impl TintMap {
                 .each_ref()
                 .map(|c| c.as_ref().map_or(0.0, |map| map.mass_in(footprint) / area)),
         )
+    }
+}
+
+/// A tint weighted by a density map of its size: each channel's d·t as a density map, so that
+/// a footprint's tint is the flakes' mean, ∫_A d·t / ∫_A d.
+#[derive(Clone, Debug)]
+pub(crate) struct WeightedTint {
+    density: Arc<DensityMap>,
+    /// d·t per channel (`None`: 0 everywhere).
+    channels: [Option<Arc<DensityMap>>; 3],
+}
+
+impl WeightedTint {
+    /// The tint `tint` weighted by `density`, when the two have the same size.
+    pub(crate) fn new(
+        tint: &TintMap,
+        density: &Arc<DensityMap>,
+    ) -> Result<Option<Self>, BrdfError> {
+        if density.size() != tint.size() {
+            return Ok(None);
+        }
+        let (width, height) = tint.size();
+        let channel = |c: usize| {
+            let texels: Vec<f64> = (0..width * height)
+                .map(|k| density.texel(k % width, k / width) * tint.values[k][c])
+                .collect();
+            match DensityMap::new(width, height, &texels) {
+                Ok(map) => Ok(Some(Arc::new(map))),
+                Err(DensityMapError::Empty) => Ok(None),
+                Err(error) => Err(BrdfError::DensityMap(error)),
+            }
+        };
+        Ok(Some(Self {
+            density: Arc::clone(density),
+            channels: [channel(0)?, channel(1)?, channel(2)?],
+        }))
+    }
+
+    /// ∫_A d·t / ∫_A d over the footprint; `None` where the footprint holds no density.
+    pub(crate) fn mean_over(&self, footprint: &Footprint) -> Option<DVec3> {
+        let mass = self.density.mass_in(footprint);
+        (mass > 0.0).then(|| {
+            DVec3::from_array(
+                self.channels
+                    .each_ref()
+                    .map(|c| c.as_ref().map_or(0.0, |map| map.mass_in(footprint) / mass)),
+            )
+        })
     }
 }
 
