@@ -503,3 +503,23 @@ pub fn queries_in_threads(
             .collect()
     })
 }
+
+/// The counts of a footprint (`uv`, `dx`, `dy`) and of its two halves split along `dx`:
+/// (whole, left + right). At ε = 0 they are equal (counts are additive over a split).
+#[must_use]
+pub fn whole_and_halves(
+    tree: &CountTree,
+    conic: &SphericalConic,
+    (uv, dx, dy): (DVec2, DVec2, DVec2),
+    scratch: &mut QueryScratch,
+) -> (f64, f64) {
+    let footprint = |uv, dx| Footprint::new(uv, dx, dy).expect("a finite footprint");
+    let whole = tree.query(&footprint(uv, dx), conic, scratch).count;
+    let left = tree
+        .query(&footprint(uv - 0.25 * dx, 0.5 * dx), conic, scratch)
+        .count;
+    let right = tree
+        .query(&footprint(uv + 0.25 * dx, 0.5 * dx), conic, scratch)
+        .count;
+    (whole, left + right)
+}

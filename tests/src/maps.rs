@@ -32,6 +32,28 @@ pub fn test_maps() -> Vec<TestMap> {
     ]
 }
 
+/// A count check's case: (name, width, height, values, N, γ in degrees).
+pub type CountCase = (&'static str, usize, usize, Vec<f64>, u64, f64);
+
+/// The count checks' cases: each test map with 2·10⁶ particles and a cone of 6°, and a sparse
+/// 64 × 64 checkerboard with 10⁴ particles and 40° (its leaves span 4 × 4 texels and place
+/// their particles by the map).
+#[must_use]
+pub fn count_cases() -> Vec<CountCase> {
+    test_maps()
+        .into_iter()
+        .map(|(name, w, h, values)| (name, w, h, values, 2_000_000, 6.0))
+        .chain([(
+            "sparse checkerboard",
+            64,
+            64,
+            checkerboard(64),
+            10_000,
+            40.0,
+        )])
+        .collect()
+}
+
 /// An n × n checkerboard of 0.2 and 1.
 #[must_use]
 pub fn checkerboard(n: usize) -> Vec<f64> {

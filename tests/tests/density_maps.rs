@@ -7,10 +7,8 @@ use std::sync::Arc;
 
 use glam::DVec2;
 use glint_tests::SplitMix64;
-use glint_tests::counts::{beckmann_density, queries_in_threads};
-use glint_tests::maps::{
-    checkerboard, disc, mapped_count_sums, square_mass, test_conic, test_maps,
-};
+use glint_tests::counts::{beckmann_density, queries_in_threads, whole_and_halves};
+use glint_tests::maps::{count_cases, disc, mapped_count_sums, square_mass, test_conic, test_maps};
 use glint_tree::{CountTree, CountTreeConfig, DensityMap, Footprint, QueryScratch};
 
 fn tree(particles: u64, epsilon: f64, seed: u64, map: Option<DensityMap>) -> CountTree {
@@ -34,17 +32,7 @@ fn tree(particles: u64, epsilon: f64, seed: u64, map: Option<DensityMap>) -> Cou
 /// 64 × 64 texels: leaves span 4 × 4 texels and place their particles by the map).
 #[test]
 fn counts_follow_the_map_binomially() {
-    let cases = test_maps()
-        .into_iter()
-        .map(|(name, w, h, values)| (name, w, h, values, 2_000_000, 6.0))
-        .chain([(
-            "sparse checkerboard",
-            64,
-            64,
-            checkerboard(64),
-            10_000,
-            40.0,
-        )]);
+    let cases = count_cases();
     for (name, w, h, values, particles, gamma) in cases {
         for epsilon in [0.0, 0.1] {
             let sums = mapped_count_sums((w, h, &values), particles, gamma, epsilon, (20, 100));
@@ -132,12 +120,7 @@ fn exact_counts_under_a_map_are_additive() {
             let uv = DVec2::new(rng.uniform(), rng.uniform());
             let dx = DVec2::new(0.01 + 0.05 * rng.uniform(), 0.01 * rng.uniform());
             let dy = DVec2::new(-0.01 * rng.uniform(), 0.01 + 0.05 * rng.uniform());
-            let whole = Footprint::new(uv, dx, dy).unwrap();
-            let left = Footprint::new(uv - 0.25 * dx, 0.5 * dx, dy).unwrap();
-            let right = Footprint::new(uv + 0.25 * dx, 0.5 * dx, dy).unwrap();
-            let total = tree.query(&whole, &conic, &mut scratch).count;
-            let parts = tree.query(&left, &conic, &mut scratch).count
-                + tree.query(&right, &conic, &mut scratch).count;
+            let (total, parts) = whole_and_halves(&tree, &conic, (uv, dx, dy), &mut scratch);
             assert_eq!(total.fract(), 0.0);
             assert_eq!(total, parts, "{name}: uv {uv}");
             found += total;

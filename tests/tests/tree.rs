@@ -9,7 +9,7 @@ use glint_tests::SplitMix64;
 use glint_tests::counts::{
     beckmann_tree, conic_integral_by_sampling, correlation, count_moment_errors,
     counts_over_footprints, equal_split_chi_square, mean_and_variance, multinomial_chi_square,
-    overlapping_pair_counts, queries_in_threads,
+    overlapping_pair_counts, queries_in_threads, whole_and_halves,
 };
 use glint_tests::geometry::direction;
 use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
@@ -149,12 +149,7 @@ fn exact_counts_are_additive() {
             let uv = DVec2::new(rng.uniform(), rng.uniform());
             let dx = DVec2::new(0.01 + 0.02 * rng.uniform(), 0.005 * rng.uniform());
             let dy = DVec2::new(-0.004 * rng.uniform(), 0.01 + 0.02 * rng.uniform());
-            let whole = Footprint::new(uv, dx, dy).unwrap();
-            let left = Footprint::new(uv - 0.25 * dx, 0.5 * dx, dy).unwrap();
-            let right = Footprint::new(uv + 0.25 * dx, 0.5 * dx, dy).unwrap();
-            let total = tree.query(&whole, &conic, &mut scratch).count;
-            let parts = tree.query(&left, &conic, &mut scratch).count
-                + tree.query(&right, &conic, &mut scratch).count;
+            let (total, parts) = whole_and_halves(&tree, &conic, (uv, dx, dy), &mut scratch);
             assert_eq!(total.fract(), 0.0, "exact counts are whole particles");
             assert_eq!(total, parts, "α {alpha}, N {particles}, uv {uv}");
         }

@@ -13,7 +13,7 @@ use glint_brdf::{
 };
 use glint_tests::SplitMix64;
 use glint_tests::geometry::direction;
-use glint_tests::maps::{checkerboard, mapped_count_sums, test_maps};
+use glint_tests::maps::{count_cases, mapped_count_sums};
 
 use crate::validate::Check;
 
@@ -34,17 +34,7 @@ pub(crate) fn counts(quick: bool, report: &mut String) -> anyhow::Result<Check> 
          |---|---|---|---|---|---|---|---|---|---|---|",
         if quick { 0.25 } else { 0.1 }
     )?;
-    let cases = test_maps()
-        .into_iter()
-        .map(|(name, w, h, values)| (name, w, h, values, 2_000_000u64, 6.0))
-        .chain([(
-            "sparse checkerboard",
-            64,
-            64,
-            checkerboard(64),
-            10_000,
-            40.0,
-        )]);
+    let cases = count_cases();
     let mut failures = 0;
     for (name, w, h, values, particles, gamma) in cases {
         for epsilon in [0.0, 0.1] {
