@@ -287,7 +287,12 @@ impl DensityMap {
     /// The largest value (as stored).
     #[must_use]
     pub fn max(&self) -> f64 {
-        self.fixed.iter().copied().max().unwrap_or(0) as f64 / FIXED_ONE
+        // The pyramid's last level is one block over the whole map (a 1 × 1 map has none).
+        let top = self
+            .max_levels
+            .last()
+            .map_or(&self.fixed, |level| &level.maxima);
+        top.iter().copied().max().unwrap_or(0) as f64 / FIXED_ONE
     }
 
     /// d of the texel in `column` and `row`, row 0 at the top as given (as stored).
