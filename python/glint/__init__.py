@@ -29,8 +29,9 @@ __all__ = ["Material", "__version__", "render", "write_exr", "write_png"]
 
 
 def _rows(name, value, width):
-    """A C-contiguous float64 array of shape (n, width) and whether the input was one row."""
-    array = np.ascontiguousarray(np.asarray(value, dtype=np.float64))
+    """A float64 array of shape (n, width) and whether the input was one row. Views (columns of
+    a wider array) are kept as they are: the native module reads strided arrays in place."""
+    array = np.asarray(value, dtype=np.float64)
     single = array.ndim == 1
     if single:
         array = array.reshape(1, -1)
@@ -202,7 +203,7 @@ class Material:
             result = {key: value[0] for key, value in result.items()}
         return result
 
-    def eval(self, wi, wo, uv, duv_dx, duv_dy, *, expected_count=True):
+    def eval(self, wi, wo, uv, duv_dx, duv_dy, *, expected_count=True, f_smooth=True):
         """f̂ and its statistics for n queries.
 
         ``wi``, ``wo``: (n, 3) directions in the local frame (z = normal), ``wi`` toward the
@@ -216,7 +217,9 @@ class Material:
         row's numbers are then NaN). 1-D inputs give one query's values.
 
         ``expected_count=False`` skips the expected count (a tree traversal of its own, as
-        costly as the count's; the column is then NaN): what a renderer needs is f̂.
+        costly as the count's; the column is then NaN), and ``f_smooth=False`` the smooth BRDF
+        (Smith's Λ of both directions, about a fifth of a row's cost; NaN): a renderer that
+        shades f̂ wherever it has a footprint needs neither.
         Rows are answered in parallel in an order that keeps neighbouring footprints on one
         thread, and returned in input order, bit for bit whatever the batch or thread count.
         """
@@ -225,7 +228,8 @@ class Material:
         uv, _ = _rows("uv", uv, 2)
         dx, _ = _rows("duv_dx", duv_dx, 2)
         dy, _ = _rows("duv_dy", duv_dy, 2)
-        c = _with_errors(self._native.eval(wi, wo, uv, dx, dy, bool(expected_count)))
+        c = _with_errors(self._native.eval(wi, wo, uv, dx, dy, bool(expected_count),
+                                           bool(f_smooth)))
         result = {
             "count": c["count"],
             "expected_count": c["expected_count"],
@@ -237,6 +241,19 @@ class Material:
             "error": c["error"],
         }
         return self._finish(result, single)
+
+    def f_hat(self, wi, wo, uv, duv_dx, duv_dy):
+        """f̂ alone for n queries, as ``eval`` computes it: (n,) when F is grey, else (n, 3);
+        NaN on the rows ``eval`` refuses (its ``error`` column names why). What a renderer
+        shading pixel footprints asks for, at the lowest cost per row: no statistics, no
+        smooth BRDF, no error strings. Arguments as for ``eval``."""
+        wi, single = _rows("wi", wi, 3)
+        wo, _ = _rows("wo", wo, 3)
+        uv, _ = _rows("uv", uv, 2)
+        dx, _ = _rows("duv_dx", duv_dx, 2)
+        dy, _ = _rows("duv_dy", duv_dy, 2)
+        f = self._native.f_hat(wi, wo, uv, dx, dy)
+        return f[0] if single else f
 
     def sample(self, wi, u, uv=None, duv_dx=None, duv_dy=None):
         """Directions from the glint sampler (Sec. 3.4) for n rows, and their two weights.
@@ -279,7 +296,7 @@ class Material:
             uv, _ = _rows("uv", uv, 2)
             dx, _ = _rows("duv_dx", duv_dx, 2)
             dy, _ = _rows("duv_dy", duv_dy, 2)
-            e = _with_errors(self._native.eval(wi, at, uv, dx, dy, False))
+            e = _with_errors(self._native.eval(wi, at, uv, dx, dy, False, False))
             f_hat = self._colour(e, "f_hat")
             mask = sampled if f_hat.ndim == 1 else sampled[:, None]
             f_hat = np.where(mask, f_hat, 0.0)

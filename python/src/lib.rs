@@ -20,9 +20,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::Duration;
 
-use glint_brdf::QueryScratch;
-use glint_eval::{EvalMaterial, EvalRow, MapSpec, MaterialSpec, uniforms_from_three};
-use numpy::{PyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use glint_brdf::{DVec3, QueryScratch};
+use glint_eval::{EvalColumns, EvalMaterial, EvalRow, MapSpec, MaterialSpec, uniforms_from_three};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -48,6 +48,50 @@ fn rows<const K: usize>(array: &PyReadonlyArray2<'_, f64>, name: &str) -> PyResu
         .rows()
         .into_iter()
         .map(|row| std::array::from_fn(|k| row[k]))
+        .collect())
+}
+
+/// The rows of an `eval` call from its five (n, k) columns, read in place, or an error naming
+/// the column of the wrong shape or length.
+fn eval_rows(
+    wi: &PyReadonlyArray2<'_, f64>,
+    wo: &PyReadonlyArray2<'_, f64>,
+    uv: &PyReadonlyArray2<'_, f64>,
+    duv_dx: &PyReadonlyArray2<'_, f64>,
+    duv_dy: &PyReadonlyArray2<'_, f64>,
+) -> PyResult<Vec<EvalRow>> {
+    let columns = [
+        (wi.as_array(), "wi", 3),
+        (wo.as_array(), "wo", 3),
+        (uv.as_array(), "uv", 2),
+        (duv_dx.as_array(), "duv_dx", 2),
+        (duv_dy.as_array(), "duv_dy", 2),
+    ];
+    for (view, name, k) in &columns {
+        if view.ncols() != *k {
+            return Err(PyValueError::new_err(format!(
+                "{name} must have shape (n, {k}), not {:?}",
+                view.shape()
+            )));
+        }
+    }
+    let n = columns[0].0.nrows();
+    same_length(
+        n,
+        &columns[1..]
+            .iter()
+            .map(|(view, name, _)| (view.nrows(), *name))
+            .collect::<Vec<_>>(),
+    )?;
+    let [wi, wo, uv, dx, dy] = columns.map(|(view, _, _)| view);
+    Ok((0..n)
+        .map(|i| EvalRow {
+            wi: [wi[[i, 0]], wi[[i, 1]], wi[[i, 2]]],
+            wo: [wo[[i, 0]], wo[[i, 1]], wo[[i, 2]]],
+            uv: [uv[[i, 0]], uv[[i, 1]]],
+            duv_dx: [dx[[i, 0]], dx[[i, 1]]],
+            duv_dy: [dy[[i, 0]], dy[[i, 1]]],
+        })
         .collect())
 }
 
@@ -222,8 +266,9 @@ impl Material {
     /// The `eval` op over n rows: flat columns `count`, `expected_count`, `d_hat`, `f_hat_r`,
     /// `f_hat_g`, `f_hat_b`, `f_smooth_r`, …, `nodes_visited`, `negligible_bound` (NaN where the
     /// query was traversed) and `error`.
-    /// With `expected_count` false the expected count's own traversal is skipped (NaN).
-    #[pyo3(signature = (wi, wo, uv, duv_dx, duv_dy, expected_count = true))]
+    /// With `expected_count` false the expected count's own traversal is skipped (NaN); with
+    /// `f_smooth` false the smooth BRDF is not computed (NaN).
+    #[pyo3(signature = (wi, wo, uv, duv_dx, duv_dy, expected_count = true, f_smooth = true))]
     #[allow(clippy::too_many_arguments)]
     fn eval<'py>(
         &self,
@@ -234,35 +279,17 @@ impl Material {
         duv_dx: PyReadonlyArray2<'py, f64>,
         duv_dy: PyReadonlyArray2<'py, f64>,
         expected_count: bool,
+        f_smooth: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (wi, wo) = (rows::<3>(&wi, "wi")?, rows::<3>(&wo, "wo")?);
-        let (uv, dx, dy) = (
-            rows::<2>(&uv, "uv")?,
-            rows::<2>(&duv_dx, "duv_dx")?,
-            rows::<2>(&duv_dy, "duv_dy")?,
-        );
-        same_length(
-            wi.len(),
-            &[
-                (wo.len(), "wo"),
-                (uv.len(), "uv"),
-                (dx.len(), "duv_dx"),
-                (dy.len(), "duv_dy"),
-            ],
-        )?;
-        let rows: Vec<EvalRow> = (0..wi.len())
-            .map(|i| EvalRow {
-                wi: wi[i],
-                wo: wo[i],
-                uv: uv[i],
-                duv_dx: dx[i],
-                duv_dy: dy[i],
-            })
-            .collect();
+        let rows = eval_rows(&wi, &wo, &uv, &duv_dx, &duv_dy)?;
         let material = &self.inner;
         let pool = process_pool()?;
+        let wanted = EvalColumns {
+            expected_count,
+            f_smooth,
+        };
         let answers = answer_rows(py, &pool, &rows, EvalRow::locality_key, |scratch, row| {
-            material.eval_row(scratch, row, expected_count).map(|e| {
+            material.eval_row(scratch, row, wanted).map(|e| {
                 [
                     e.count,
                     e.expected_count,
@@ -295,6 +322,36 @@ impl Material {
             ],
             answers,
         )
+    }
+
+    /// f̂ alone over n rows, as `eval` computes it (without its statistics): (n,) when F is
+    /// grey, else (n, 3); NaN on the rows `eval` refuses (its `error` column names why). What a
+    /// renderer shading pixel footprints asks for, at the lowest cost per row.
+    fn f_hat<'py>(
+        &self,
+        py: Python<'py>,
+        wi: PyReadonlyArray2<'py, f64>,
+        wo: PyReadonlyArray2<'py, f64>,
+        uv: PyReadonlyArray2<'py, f64>,
+        duv_dx: PyReadonlyArray2<'py, f64>,
+        duv_dy: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rows = eval_rows(&wi, &wo, &uv, &duv_dx, &duv_dy)?;
+        let material = &self.inner;
+        let pool = process_pool()?;
+        let answers = answer_rows(py, &pool, &rows, EvalRow::locality_key, |scratch, row| {
+            material
+                .eval_row(scratch, row, EvalColumns::F_HAT)
+                .map_or(DVec3::NAN, |e| e.f_hat)
+        })?;
+        if material.is_gray() {
+            let column: Vec<f64> = answers.iter().map(|f| f.x).collect();
+            return Ok(PyArray1::from_vec(py, column).into_any());
+        }
+        let flat: Vec<f64> = answers.iter().flat_map(|f| f.to_array()).collect();
+        Ok(PyArray1::from_vec(py, flat)
+            .reshape([answers.len(), 3])?
+            .into_any())
     }
 
     /// The `sample` op over n rows of 3 or 4 uniform numbers: flat columns `wo_x`, `wo_y`,

@@ -109,6 +109,32 @@ def test_eval_sample_pdf_match_json_lines_bit_for_bit(index):
     assert found > 0, "the comparison must include queries that find particles"
 
 
+@pytest.mark.parametrize("index", range(len(MATERIALS)))
+def test_f_hat_and_lean_eval_columns_are_evals_bit_for_bit(index):
+    """``f_hat`` (a renderer's call) and ``eval`` without the expected count or the smooth BRDF
+    give eval's f̂ bit for bit, in strided columns too; the skipped columns are NaN and bad rows
+    NaN in ``f_hat``."""
+    m = glint.Material(**MATERIALS[index])
+    wi, wo, uv, dx, dy, _ = _queries(400, seed=30 + index)
+    wo[5] = [0.0, 0.0, 0.0]  # refused: zero length
+    dx[9] = [math.inf, 0.0]  # refused: a non-finite footprint
+    full = m.eval(wi, wo, uv, dx, dy)
+    lean = m.eval(wi, wo, uv, dx, dy, expected_count=False, f_smooth=False)
+    for key in ("count", "d_hat", "f_hat", "nodes_visited", "negligible_bound", "error"):
+        assert np.array_equal(lean[key], full[key]) or _same(lean[key], full[key]), key
+    ok = full["error"] == ""
+    assert np.all(np.isnan(lean["expected_count"])) and np.all(np.isnan(lean["f_smooth"]))
+    assert ok.sum() == len(ok) - 2
+    # Strided columns of one (n, 12) array, as a renderer packs its rows.
+    packed = np.concatenate([wi, wo, uv, dx, dy], axis=1)
+    f = m.f_hat(packed[:, 0:3], packed[:, 3:6], packed[:, 6:8], packed[:, 8:10],
+                packed[:, 10:12])
+    assert f.shape == full["f_hat"].shape
+    assert _same(f[ok], full["f_hat"][ok]) and np.all(np.isnan(f[~ok]))
+    assert np.any(f[ok] > 0), "the comparison must include queries that find particles"
+    assert _same(m.f_hat(wi[3], wo[3], uv[3], dx[3], dy[3]), full["f_hat"][3])
+
+
 def test_sample_weights_are_named_and_the_footprint_one_is_f_hats():
     """`smooth_weight` (and its deprecated name `weight`) is eval's sample weight; with a
     footprint, `footprint_weight` is f̂ at the sampled direction times cos θ_o / pdf, f̂ as

@@ -16,7 +16,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use glint_brdf::{DVec2, DVec3, Footprint, QueryScratch};
-use glint_eval::{EvalRow, MaterialSpec};
+use glint_eval::{EvalColumns, EvalRow, MaterialSpec};
 
 fn main() -> Result<(), String> {
     let mut args = std::env::args().skip(1);
@@ -78,11 +78,11 @@ fn main() -> Result<(), String> {
         let start = Instant::now();
         let mut scratch = QueryScratch::new();
         for r in &rows {
-            let _ = material.eval_row(&mut scratch, r, false);
+            let _ = material.eval_row(&mut scratch, r, EvalColumns::F_HAT);
         }
         let rows_loop = per_row(start);
         let start = Instant::now();
-        let batch = one.install(|| material.eval_rows(&rows, false, &cancelled));
+        let batch = one.install(|| material.eval_rows(&rows, EvalColumns::F_HAT, &cancelled));
         let batch_time = per_row(start);
         let start = Instant::now();
         one.install(|| {
@@ -90,15 +90,24 @@ fn main() -> Result<(), String> {
                 &rows,
                 |_| 0,
                 &cancelled,
-                |scratch, row| material.eval_row(scratch, row, false),
+                |scratch, row| material.eval_row(scratch, row, EvalColumns::F_HAT),
             )
         });
         let input_order = per_row(start);
         let start = Instant::now();
-        one.install(|| material.eval_rows(&rows, true, &cancelled));
+        one.install(|| {
+            material.eval_rows(
+                &rows,
+                EvalColumns {
+                    expected_count: true,
+                    f_smooth: false,
+                },
+                &cancelled,
+            )
+        });
         let with_expected = per_row(start);
         let start = Instant::now();
-        material.eval_rows(&rows, false, &cancelled);
+        material.eval_rows(&rows, EvalColumns::F_HAT, &cancelled);
         let all = per_row(start);
         let batch_found: f64 = batch
             .iter()

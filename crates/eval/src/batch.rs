@@ -8,10 +8,11 @@
 //! - **Scratches live per thread, across calls** ([`with_thread_scratch`]): each thread that
 //!   answers rows keeps one scratch for its lifetime (a worker pool's threads keep theirs from
 //!   one batch to the next), so no call starts with cold memos or allocates them.
-//! - **Rows are dispatched in locality order** ([`answer_rows`]): sorted by a Morton (Z-order)
-//!   key of the footprint's centre in the particles' unit square, then cut into contiguous
-//!   runs, one per task, so neighbouring footprints are answered one after the other on one
-//!   thread whatever order the caller gave them in.
+//! - **Rows are dispatched in locality order** ([`answer_rows`]): in the caller's order when it
+//!   already keeps neighbouring footprints together (a renderer's pixel order), else sorted by
+//!   a Morton (Z-order) key of the footprint's centre in the particles' unit square; then cut
+//!   into contiguous runs, one per task, so neighbouring footprints are answered one after the
+//!   other on one thread whatever order the caller gave them in.
 //! - **Answers come back in input order, bit for bit whatever the split**: a query's answer is
 //!   a function of the query alone (the scratch only remembers draws that the material fixes;
 //!   `DESIGN.md`, "The particle set is a function of the material alone"), so the thread
@@ -120,9 +121,13 @@ fn spread(mut x: u64) -> u64 {
 
 /// Answers every input with `answer` in parallel on the current rayon pool (the caller's
 /// `ThreadPool::install`, else rayon's global pool), each thread with its own scratch kept
-/// across calls ([`with_thread_scratch`]), dispatching the rows in the order of `key` (rows of
-/// equal key in input order; [`locality_key`] of the footprint's centre, or 0 for all when the
-/// rows have no footprint) and returning the answers in input order.
+/// across calls ([`with_thread_scratch`]), and returns the answers in input order.
+///
+/// Rows go to threads in contiguous runs of a dispatch order: the caller's own when it already
+/// keeps neighbours together ([`keeps_neighbours_together`]: a renderer's pixel order), else
+/// the order of `key` (rows of equal key in input order; [`locality_key`] of the footprint's
+/// centre, or 0 for all when the rows have no footprint). Reordering costs a sort and a cache
+/// miss per row, which rows already in order do not pay.
 ///
 /// `cancelled` is read before each row: once it is set, the remaining rows are not answered
 /// and come back `None` (every answered row is `Some`).
@@ -133,36 +138,84 @@ pub fn answer_rows<I: Sync, O: Send>(
     answer: impl Fn(&mut QueryScratch, &I) -> O + Sync,
 ) -> Vec<Option<O>> {
     let n = inputs.len();
-    // The dispatch order: stable, so rows of equal key keep the caller's order.
-    let mut order: Vec<(u64, u32)> = inputs
-        .iter()
-        .enumerate()
-        .map(|(i, input)| (key(input), i as u32))
-        .collect();
-    if order.windows(2).any(|w| w[0].0 > w[1].0) {
-        order.sort_unstable();
-    }
     let tasks = rayon::current_num_threads().max(1) * TASKS_PER_THREAD;
     let rows_per_task = n.div_ceil(tasks).max(MIN_ROWS_PER_TASK);
-    let answered: Vec<Vec<(u32, O)>> = order
+    let keys: Vec<u64> = inputs.iter().map(&key).collect();
+    let mut answers: Vec<Option<O>> = Vec::with_capacity(n);
+    if keeps_neighbours_together(&keys) {
+        let starts: Vec<usize> = (0..n).step_by(rows_per_task).collect();
+        let answered: Vec<Vec<O>> = starts
+            .par_iter()
+            .map(|&start| {
+                answer_run(
+                    start..(start + rows_per_task).min(n),
+                    inputs,
+                    cancelled,
+                    &answer,
+                )
+            })
+            .collect();
+        for (&start, outputs) in starts.iter().zip(answered) {
+            answers.resize_with(start, || None);
+            answers.extend(outputs.into_iter().map(Some));
+        }
+        answers.resize_with(n, || None);
+        return answers;
+    }
+    // The dispatch order: stable, so rows of equal key keep the caller's order.
+    let mut order: Vec<(u64, u32)> = keys.into_iter().zip(0..).collect();
+    order.sort_unstable();
+    let answered: Vec<Vec<O>> = order
         .par_chunks(rows_per_task)
         .map(|run| {
-            with_thread_scratch(|scratch| {
-                run.iter()
-                    .map_while(|&(_, i)| {
-                        (!cancelled.load(Ordering::Relaxed))
-                            .then(|| (i, answer(scratch, &inputs[i as usize])))
-                    })
-                    .collect()
-            })
+            answer_run(
+                run.iter().map(|&(_, i)| i as usize),
+                inputs,
+                cancelled,
+                &answer,
+            )
         })
         .collect();
-    let mut answers: Vec<Option<O>> = (0..n).map(|_| None).collect();
-    for (i, o) in answered.into_iter().flatten() {
-        answers[i as usize] = Some(o);
+    answers.resize_with(n, || None);
+    for (run, outputs) in order.chunks(rows_per_task).zip(answered) {
+        for (&(_, i), o) in run.iter().zip(outputs) {
+            answers[i as usize] = Some(o);
+        }
     }
     answers
 }
+
+/// The answers to the rows `run` of `inputs` with this thread's scratch, in the run's order (a
+/// prefix of it when `cancelled` is set).
+fn answer_run<I, O>(
+    run: impl Iterator<Item = usize>,
+    inputs: &[I],
+    cancelled: &AtomicBool,
+    answer: &impl Fn(&mut QueryScratch, &I) -> O,
+) -> Vec<O> {
+    with_thread_scratch(|scratch| {
+        run.map_while(|i| (!cancelled.load(Ordering::Relaxed)).then(|| answer(scratch, &inputs[i])))
+            .collect()
+    })
+}
+
+/// Whether rows in the order of `keys` ([`locality_key`]s) already keep neighbouring
+/// footprints together: at most one row in [`JUMPS_PER_ROW_IN_ORDER`] moves to another cell of
+/// a 16 × 16 grid of the unit square than the row before it (the top 8 bits of the 32-bit
+/// key). A frame's rows in pixel order move to a neighbouring cell every few dozen pixels
+/// along a scanline; rows in random order move on almost every row.
+#[must_use]
+pub fn keeps_neighbours_together(keys: &[u64]) -> bool {
+    if keys.windows(2).all(|w| w[0] <= w[1]) {
+        return true;
+    }
+    let jumps = keys.windows(2).filter(|w| w[0] >> 24 != w[1] >> 24).count();
+    jumps * JUMPS_PER_ROW_IN_ORDER <= keys.len()
+}
+
+/// See [`keeps_neighbours_together`]: rows in order jump to another grid cell at most once in
+/// this many rows.
+const JUMPS_PER_ROW_IN_ORDER: usize = 16;
 
 #[cfg(test)]
 mod tests {
@@ -178,6 +231,25 @@ mod tests {
         assert_eq!(locality_key([0.3, 0.7]), locality_key([3.3, -1.3]));
         assert_eq!(locality_key([f64::NAN, 0.0]), 0);
         assert!(locality_key([0.999_999_999, 0.999_999_999]) <= u64::from(u32::MAX));
+    }
+
+    #[test]
+    fn pixel_order_keeps_neighbours_together_and_random_order_does_not() {
+        // A 256 × 64 image of pixel footprints over the unit square, 4 samples a pixel.
+        let pixels: Vec<u64> = (0..64)
+            .flat_map(|y| {
+                (0..256 * 4).map(move |x| locality_key([(x / 4) as f64 / 256.0, y as f64 / 64.0]))
+            })
+            .collect();
+        assert!(keeps_neighbours_together(&pixels));
+        let scattered: Vec<u64> = (0..pixels.len())
+            .map(|i| pixels[(i * 7919) % pixels.len()])
+            .collect();
+        assert!(!keeps_neighbours_together(&scattered));
+        let mut sorted = scattered;
+        sorted.sort_unstable();
+        assert!(keeps_neighbours_together(&sorted));
+        assert!(keeps_neighbours_together(&[]));
     }
 
     #[test]

@@ -43,5 +43,6 @@ pub use json_lines::{JsonLines, MATERIAL_CACHE_BYTES, MATERIAL_CACHE_SIZE};
 pub use maps::{MapSpec, MapsSpec};
 pub use material::{DEFAULT_NEGLIGIBLE_COUNT, FresnelSpec, MaterialSpec};
 pub use request::{
-    EvalAnswer, EvalMaterial, EvalRow, SampleAnswer, split_uniform, uniforms_from_three,
+    EvalAnswer, EvalColumns, EvalMaterial, EvalRow, SampleAnswer, split_uniform,
+    uniforms_from_three,
 };

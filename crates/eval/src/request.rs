@@ -60,6 +60,32 @@ pub struct EvalAnswer {
     pub negligible_bound: Option<f64>,
 }
 
+/// Which of an `eval` row's optional answers are computed. f̂, D̂, the count and the nodes
+/// visited always are; a column that is off is NaN, and every other column is the same, bit
+/// for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EvalColumns {
+    /// N·a(A)·∫p over the conic: a tree traversal of its own, as costly as the count's.
+    pub expected_count: bool,
+    /// The smooth BRDF (Smith's Λ of both directions): about a fifth of a traversed row's
+    /// cost. A renderer that shades f̂ wherever it has a footprint does not need it.
+    pub f_smooth: bool,
+}
+
+impl EvalColumns {
+    /// Every column, as `eval` requests and `cargo xtask eval` answer.
+    pub const ALL: Self = Self {
+        expected_count: true,
+        f_smooth: true,
+    };
+    /// f̂ and what comes with it, without the expected count or the smooth BRDF: what a
+    /// renderer shading pixel footprints needs.
+    pub const F_HAT: Self = Self {
+        expected_count: false,
+        f_smooth: false,
+    };
+}
+
 /// The answer to a `sample` request that sampled a direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SampleAnswer {
@@ -109,12 +135,11 @@ impl EvalMaterial {
             duv_dx,
             duv_dy,
         };
-        self.eval_row(scratch, &row, true)
+        self.eval_row(scratch, &row, EvalColumns::ALL)
     }
 
-    /// [`EvalMaterial::eval`] of one row; with `expected_count` false, the expected count (a
-    /// tree traversal of its own, as costly as the count's) is not computed and is NaN. Every
-    /// other field is the same, bit for bit.
+    /// [`EvalMaterial::eval`] of one row, computing the optional `columns` only (the others
+    /// are NaN; every computed field is the same, bit for bit, whatever `columns` says).
     ///
     /// # Errors
     /// A message naming the invalid input (`wi`, `wo`, the footprint).
@@ -122,7 +147,7 @@ impl EvalMaterial {
         &self,
         scratch: &mut QueryScratch,
         row: &EvalRow,
-        expected_count: bool,
+        columns: EvalColumns,
     ) -> Result<EvalAnswer, String> {
         let wi = direction(row.wi, "wi")?;
         let wo = direction(row.wo, "wo")?;
@@ -135,14 +160,18 @@ impl EvalMaterial {
         let e = bxdf.evaluate(wi, wo);
         Ok(EvalAnswer {
             count: e.count,
-            expected_count: if expected_count {
+            expected_count: if columns.expected_count {
                 bxdf.expected_count(wi, wo)
             } else {
                 f64::NAN
             },
             d_hat: e.d_hat.x,
             f_hat: e.f_hat,
-            f_smooth: self.brdf.smooth_at(wi, wo, footprint.center()),
+            f_smooth: if columns.f_smooth {
+                self.brdf.smooth_at(wi, wo, footprint.center())
+            } else {
+                DVec3::NAN
+            },
             nodes_visited: e.nodes_visited,
             negligible_bound: e.negligible,
         })
@@ -155,11 +184,11 @@ impl EvalMaterial {
     pub fn eval_rows(
         &self,
         rows: &[EvalRow],
-        expected_count: bool,
+        columns: EvalColumns,
         cancelled: &AtomicBool,
     ) -> Vec<Option<Result<EvalAnswer, String>>> {
         answer_rows(rows, EvalRow::locality_key, cancelled, |scratch, row| {
-            self.eval_row(scratch, row, expected_count)
+            self.eval_row(scratch, row, columns)
         })
     }
 

@@ -4,7 +4,7 @@
 use std::sync::atomic::AtomicBool;
 
 use glint_brdf::QueryScratch;
-use glint_eval::{DEFAULT_NEGLIGIBLE_COUNT, EvalAnswer, EvalRow, MaterialSpec};
+use glint_eval::{DEFAULT_NEGLIGIBLE_COUNT, EvalAnswer, EvalColumns, EvalRow, MaterialSpec};
 
 /// A frame's worth of first-hit queries in pixel order: a 40 × 30 grid of pixel-sized
 /// footprints over a patch of the unit square, 4 samples per pixel, directions near a
@@ -100,7 +100,7 @@ fn batches_answer_as_single_rows_whatever_the_split() {
     // Each row alone, each with a fresh scratch: the definition.
     let single: Vec<String> = rows
         .iter()
-        .map(|row| bits(&material.eval_row(&mut QueryScratch::new(), row, true)))
+        .map(|row| bits(&material.eval_row(&mut QueryScratch::new(), row, EvalColumns::ALL)))
         .collect();
     assert_eq!(single.iter().filter(|s| s.starts_with("error")).count(), 3);
     let cancelled = AtomicBool::new(false);
@@ -113,7 +113,7 @@ fn batches_answer_as_single_rows_whatever_the_split() {
             // Whole, in pieces of odd sizes (scratches carried from one call to the next), and
             // reversed.
             let whole: Vec<String> = material
-                .eval_rows(&rows, true, &cancelled)
+                .eval_rows(&rows, EvalColumns::ALL, &cancelled)
                 .iter()
                 .map(|a| bits(a.as_ref().unwrap()))
                 .collect();
@@ -122,7 +122,7 @@ fn batches_answer_as_single_rows_whatever_the_split() {
             for piece in rows.chunks(777) {
                 pieces.extend(
                     material
-                        .eval_rows(piece, true, &cancelled)
+                        .eval_rows(piece, EvalColumns::ALL, &cancelled)
                         .iter()
                         .map(|a| bits(a.as_ref().unwrap())),
                 );
@@ -130,26 +130,45 @@ fn batches_answer_as_single_rows_whatever_the_split() {
             assert_eq!(pieces, single, "{threads} threads, in pieces");
             let reversed: Vec<EvalRow> = rows.iter().rev().copied().collect();
             let mut answers: Vec<String> = material
-                .eval_rows(&reversed, true, &cancelled)
+                .eval_rows(&reversed, EvalColumns::ALL, &cancelled)
                 .iter()
                 .map(|a| bits(a.as_ref().unwrap()))
                 .collect();
             answers.reverse();
             assert_eq!(answers, single, "{threads} threads, reversed");
+            // Shuffled (rows far apart in turn): dispatched in Morton order, not the caller's.
+            let shuffle = |i: usize| (i * 7919) % rows.len();
+            let shuffled: Vec<EvalRow> = (0..rows.len()).map(|i| rows[shuffle(i)]).collect();
+            assert!(!glint_eval::batch::keeps_neighbours_together(
+                &shuffled
+                    .iter()
+                    .map(EvalRow::locality_key)
+                    .collect::<Vec<_>>()
+            ));
+            let answers = material.eval_rows(&shuffled, EvalColumns::ALL, &cancelled);
+            for (i, a) in answers.iter().enumerate() {
+                assert_eq!(
+                    bits(a.as_ref().unwrap()),
+                    single[shuffle(i)],
+                    "{threads} threads, shuffled"
+                );
+            }
         });
     }
-    // Without the expected count, every other field is the same.
-    let fast = material.eval_rows(&rows, false, &cancelled);
+    // Without the expected count or the smooth BRDF, every other field is the same.
+    let fast = material.eval_rows(&rows, EvalColumns::F_HAT, &cancelled);
     for (row, (f, s)) in rows.iter().zip(fast.iter().zip(&single)) {
         match f.as_ref().unwrap() {
             Ok(e) => {
                 assert!(e.expected_count.is_nan());
+                assert!(e.f_smooth.is_nan());
                 let full = material
-                    .eval_row(&mut QueryScratch::new(), row, true)
+                    .eval_row(&mut QueryScratch::new(), row, EvalColumns::ALL)
                     .unwrap();
                 assert_eq!(
                     bits(&Ok(EvalAnswer {
                         expected_count: full.expected_count,
+                        f_smooth: full.f_smooth,
                         ..*e
                     })),
                     *s
@@ -179,8 +198,8 @@ fn the_negligible_test_is_on_by_default() {
     let rows = frame_rows();
     let cancelled = AtomicBool::new(false);
     let (a, b) = (
-        default.eval_rows(&rows, true, &cancelled),
-        traverse_all.eval_rows(&rows, true, &cancelled),
+        default.eval_rows(&rows, EvalColumns::ALL, &cancelled),
+        traverse_all.eval_rows(&rows, EvalColumns::ALL, &cancelled),
     );
     let mut skipped = 0;
     for (a, b) in a.iter().zip(&b) {
