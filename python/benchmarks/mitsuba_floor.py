@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+import drjit as dr
 import mitsuba as mi
 
 
@@ -40,7 +41,9 @@ def main():
     for pair in range(args.pairs):
         for floor, scene in scenes.items():
             start = time.perf_counter()
-            gm.render(scene, seed=pair + 1)
+            image = gm.render(scene, seed=pair + 1)
+            dr.eval(image)
+            dr.sync_thread()
             times[floor].append(time.perf_counter() - start)
             print(f"pair {pair}: {floor} {times[floor][-1]:.2f} s", flush=True)
     ratios = [g / r for g, r in zip(times["glint"], times["roughconductor"])]

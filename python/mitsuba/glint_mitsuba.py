@@ -358,6 +358,9 @@ def render(scene, samples_per_pass=None, seed=0):
 
             flags.enter_context(dr.scoped_set_flag(dr.JitFlag.SymbolicLoops, False))
             flags.enter_context(dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False))
+        # ``mi.render(spp=k)`` leaves the sampler at k samples per pixel: restore the scene's
+        # count, so that the next render draws the scene's samples again.
+        flags.callback(sensor.sampler().set_sample_count, spp)
         for k in range(passes):
             image = mi.render(scene, seed=seed + k, spp=int(samples_per_pass))
             total = image if total is None else total + image

@@ -296,3 +296,17 @@ def test_render_script_runs_in_the_llvm_variant(tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert out.stat().st_size > 0
+
+
+def test_renders_in_passes_keep_the_scenes_sample_count(plugins):
+    """``glint_mitsuba.render`` in passes averages passes of the given size, and leaves the
+    sampler at the scene's count: a second render draws the same samples again (Mitsuba's
+    ``mi.render(spp=k)`` sets the sampler's count to k)."""
+    gm, _ = plugins
+    scene = mi.load_dict(gm.sphere_lights_scene((16, 9), spp=4, floor="roughconductor"))
+    first = np.array(gm.render(scene, samples_per_pass=2))
+    assert scene.sensors()[0].sampler().sample_count() == 4
+    again = np.array(gm.render(scene, samples_per_pass=2))
+    assert np.array_equal(first, again)
+    passes = [np.array(mi.render(scene, seed=k, spp=2)) for k in range(2)]
+    assert first == pytest.approx((passes[0] + passes[1]) / 2, rel=1e-5, abs=1e-7)
