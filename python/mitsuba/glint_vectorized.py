@@ -9,10 +9,15 @@ includes cos θ_o, the pixel footprint comes from the camera's ray differential 
 hit (``si.compute_uv_partials``), and a glint BSDF shades f̂ where the interaction carries uv
 partials and its smooth limit elsewhere.
 
-In a vectorized variant a Python BSDF receives a wavefront: its arrays are gathered to NumPy
-(``.numpy()``, one row per lane), answered by one batch call of the package for the active
-lanes (the package answers rows in parallel, keeping neighbouring footprints on one thread),
-and returned as ``mi.Float``/``mi.Color3f``. The integrators call BSDFs with
+In a vectorized variant a Python BSDF receives a wavefront. What needs no particles runs in
+Dr.Jit's own kernels (``glint_lobe.py``, the package's formulas checked against it): the
+glint sampler, its pdf by the cubature rules, and the smooth f. Only f̂ goes to the package:
+the lanes that carry a footprint are compressed, packed into one (n, 12) NumPy array, answered
+by one ``Material.f_hat`` call (rows in parallel, neighbouring footprints on one thread) and
+scattered back; so are the rare lanes whose pdf needs the package's slope-space rule (wide
+cones, cones across the horizon). ``glint_direct`` and ``glint_path`` ask for the BSDF's pdf
+of a light sample only where it carries light (f̂ is 0 on most light samples of a sparse
+material). The integrators call BSDFs with
 ``dr.JitFlag.SymbolicCalls`` off (a Python method cannot be traced symbolically) and loop over
 bounces in Python, each bounce evaluated at once. Mitsuba's own ``path`` integrator also runs
 Python BSDFs (with ``SymbolicLoops`` and ``SymbolicCalls`` off) but leaves the uv partials at
@@ -29,8 +34,8 @@ import mitsuba as mi
 import numpy as np
 
 import glint
+from glint_lobe import Lobe
 
-_BELOW_ONE = math.nextafter(1.0, 0.0)
 _MAX_DOUBLE = float(np.finfo(np.float64).max)
 #: The largest ``footprint_scale``, as glint-tracer's (a footprint of 10⁶ pixels).
 _MAX_FOOTPRINT_SCALE = 1e6
@@ -66,18 +71,17 @@ def material_parameters(props):
     return params, uv_scale
 
 
-def _rows(v, n):
-    """A Mitsuba vector of k components over a wavefront as an (n, k) float64 array (a lane
-    count of 1 is broadcast to n)."""
-    a = np.asarray(v.numpy(), dtype=np.float64)
-    if a.ndim == 1:
-        a = a[:, None]
-    return np.broadcast_to(a, (a.shape[0], n)).T
-
-
-def _lanes(x, n):
-    a = np.asarray(x.numpy()) if hasattr(x, "numpy") else np.asarray(x)
-    return np.broadcast_to(a.reshape(-1), (n,)) if a.size in (1, n) else a
+def _packed_rows(index, vectors):
+    """The lanes ``index`` of Dr.Jit ``vectors`` as one (n, k) float64 NumPy array, k their
+    components in order: packed in one Dr.Jit buffer and copied out once."""
+    n = dr.width(index)
+    components = [c for v in vectors for c in v]
+    k = len(components)
+    packed = dr.zeros(mi.Float64, n * k)
+    at = dr.arange(mi.UInt32, n) * k
+    for j, c in enumerate(components):
+        dr.scatter(packed, mi.Float64(dr.gather(type(c), c, index)), at + j)
+    return packed.numpy().reshape(n, k)
 
 
 def _width(*values):
@@ -144,116 +148,100 @@ def register():
             super().__init__(props)
             self.params, self.uv_scale = material_parameters(props)
             self.material = glint.Material(**self.params)
+            self.lobe = Lobe(self.material._spec)
             self.m_components = [flags]
             self.m_flags = flags
 
-        # -- over NumPy rows (also used by the tests) --------------------------------------
+        # -- the parts: the smooth lobe and the sampler in Dr.Jit, f̂ from the package ------
 
-        def footprint_rows(self, si, n):
-            """(uv, duv_dx, duv_dy) · uv_scale as (n, 2) float64 rows, and the mask of rows
-            that carry uv partials."""
-            dx, dy = _rows(si.duv_dx, n), _rows(si.duv_dy, n)
-            has = np.any(dx != 0, axis=1) | np.any(dy != 0, axis=1)
+        def footprint(self, si):
+            """(uv, duv_dx, duv_dy) · uv_scale, and the mask of lanes that carry uv partials."""
+            has = dr.any(si.duv_dx != 0.0) | dr.any(si.duv_dy != 0.0)
             s = self.uv_scale
-            return _rows(si.uv, n) * s, dx * s, dy * s, has
+            return si.uv * s, si.duv_dx * s, si.duv_dy * s, has
 
-        def brdf_rows(self, wi, wo, uv, dx, dy, has):
-            """f (no cosine) per row: f̂ where ``has``, f_smooth elsewhere and where the
-            package refuses the footprint, 0 where it refuses the directions."""
-            n = len(wi)
-            zero = np.zeros((n, 2))
-            uv = np.where(has[:, None], uv, zero)
-            dx = np.where(has[:, None], dx, zero)
-            dy = np.where(has[:, None], dy, zero)
-            r = self.material.eval(wi, wo, uv, dx, dy, expected_count=False)
-            ok = r["error"] == ""
-            f = np.where(ok, np.where(has, r["f_hat"], r["f_smooth"]), 0.0)
-            refused = has & ~ok
-            if np.any(refused):
-                k = np.flatnonzero(refused)
-                s = self.material.eval(wi[k], wo[k], zero[k], zero[k], zero[k],
-                                       expected_count=False)
-                f[k] = np.where(s["error"] == "", s["f_smooth"], 0.0)
-            return np.nan_to_num(f, nan=0.0, posinf=0.0, neginf=0.0)
+        def f_hat(self, si, wo, lanes):
+            """(f̂ without the cosine, refused): the package's f̂ on the ``lanes`` (a mask),
+            gathered to NumPy and scattered back; 0 and False elsewhere. ``refused`` marks the
+            lanes whose row the package refused (an error, never NaN)."""
+            width = _width(si.wi, si.uv, wo, lanes)
+            value, refused = dr.zeros(mi.Float, width), dr.zeros(mi.Bool, width)
+            index = dr.compress(mi.Bool(lanes) if isinstance(lanes, bool) else lanes)
+            if dr.width(index) == 0:
+                return value, refused
+            uv, dx, dy, _ = self.footprint(si)
+            rows = _packed_rows(index, (si.wi, wo, uv, dx, dy))
+            f = self.material.f_hat(rows[:, 0:3], rows[:, 3:6], rows[:, 6:8], rows[:, 8:10],
+                                    rows[:, 10:12])
+            ok = np.isfinite(f)
+            dr.scatter(value, _float(np.where(ok, f, 0.0)), index)
+            dr.scatter(refused, mi.Bool(~ok), index)
+            return value, refused
 
-        def _gather(self, ctx, si, wo, active):
-            n = _width(si.wi, si.uv, active, *([] if wo is None else [wo]))
-            on = np.array(_lanes(active, n), dtype=bool)
-            on &= bool(ctx.is_enabled(mi.BSDFFlags.GlossyReflection, 0))
-            wi = _rows(si.wi, n)
-            on &= wi[:, 2] > 0
-            wo_rows = None
+        def brdf(self, si, wo, active):
+            """f (no cosine): f̂ where the lane carries a footprint (the smooth f where the
+            package refuses it), the smooth f elsewhere."""
+            _, _, _, has = self.footprint(si)
+            smooth = mi.Float(self.lobe.f_smooth(mi.Vector3d(si.wi), mi.Vector3d(wo)))
+            glint_value, refused = self.f_hat(si, wo, active & has)
+            return dr.select(has & ~refused, glint_value, smooth)
+
+        def sampler_pdf(self, si, wo, active):
+            """The glint sampler's density: Dr.Jit's cubature rules, the package's slope-space
+            rule on the lanes that need it."""
+            wi64, wo64 = mi.Vector3d(si.wi), mi.Vector3d(wo)
+            pdf, needs_package = self.lobe.pdf(wi64, wo64)
+            pdf = mi.Float(pdf)
+            index = dr.compress(active & needs_package)
+            if dr.width(index):
+                rows = _packed_rows(index, (wi64, wo64))
+                q = self.material.pdf(rows[:, 0:3], rows[:, 3:6])
+                dr.scatter(pdf, _float(np.where(np.isfinite(q), q, 0.0)), index)
+            return pdf
+
+        def _on(self, ctx, si, wo, active):
+            """The lanes answered: active, glossy reflection enabled, both directions above
+            the horizon."""
+            on = mi.Bool(active) & (si.wi.z > 0.0)
             if wo is not None:
-                wo_rows = _rows(wo, n)
-                on &= wo_rows[:, 2] > 0
-            return n, on, wi, wo_rows
-
-        def _value_pdf(self, ctx, si, wo, active, value=True, pdf=True):
-            n, on, wi, w = self._gather(ctx, si, wo, active)
-            f, p = np.zeros(n), np.zeros(n)
-            k = np.flatnonzero(on)
-            if len(k):
-                if value:
-                    uv, dx, dy, has = self.footprint_rows(si, n)
-                    cos_o = w[k, 2] / np.linalg.norm(w[k], axis=1)
-                    f[k] = self.brdf_rows(wi[k], w[k], uv[k], dx[k], dy[k], has[k]) * cos_o
-                if pdf:
-                    q = self.material.pdf(wi[k], w[k])
-                    p[k] = np.where(np.isfinite(q), q, 0.0)
-            return f, p
+                on &= wo.z > 0.0
+            if not ctx.is_enabled(mi.BSDFFlags.GlossyReflection, 0):
+                on &= False
+            return on
 
         # -- the mi.BSDF interface -------------------------------------------------------------
 
         def eval(self, ctx, si, wo, active=True):
-            f, _ = self._value_pdf(ctx, si, wo, active, pdf=False)
-            return mi.Color3f(_float(f))
+            on = self._on(ctx, si, wo, active)
+            f = self.brdf(si, wo, on) * (wo.z * dr.rsqrt(dr.squared_norm(wo)))
+            return mi.Color3f(dr.select(on & dr.isfinite(f), f, 0.0))
 
         def pdf(self, ctx, si, wo, active=True):
-            _, p = self._value_pdf(ctx, si, wo, active, value=False)
-            return _float(p)
+            on = self._on(ctx, si, wo, active)
+            return dr.select(on, self.sampler_pdf(si, wo, on), 0.0)
 
         def eval_pdf(self, ctx, si, wo, active=True):
-            f, p = self._value_pdf(ctx, si, wo, active)
-            return mi.Color3f(_float(f)), _float(p)
+            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
-            n, on, wi, _ = self._gather(ctx, si, None, active)
-            n = max(n, _width(sample1, sample2))
-            if len(on) != n:
-                on = np.broadcast_to(on, (n,)).copy()
-                wi = np.broadcast_to(wi, (n, 3))
-            wo = np.zeros((n, 3))  # where nothing is sampled (pdf 0), as the scalar plugin
-            pdf, weight = np.zeros(n), np.zeros(n)
-            k = np.flatnonzero(on)
-            if len(k):
-                u2 = _rows(sample2, n)[k]
-                u1 = np.asarray(_lanes(sample1, n), dtype=np.float64)[k]
-                u = np.minimum(np.stack([u2[:, 0], u2[:, 1], u1], axis=1), _BELOW_ONE)
-                s = self.material.sample(wi[k], u)
-                good = ((s["error"] == "") & np.all(np.isfinite(s["wo"]), axis=1)
-                        & (s["pdf"] > 0))
-                k, s_wo, s_pdf = k[good], s["wo"][good], s["pdf"][good]
-                smooth = s["smooth_weight"][good]
-                if len(k):
-                    # Where there is no footprint, the package's smooth weight (bit for bit
-                    # the scalar plugin's); with one, f̂·cos θ_o / pdf at the sampled wo.
-                    weight[k] = smooth
-                    uv, dx, dy, has = self.footprint_rows(si, n)
-                    j = np.flatnonzero(has[k])
-                    if len(j):
-                        w = s_wo[j]
-                        f = self.brdf_rows(wi[k[j]], w, uv[k[j]], dx[k[j]], dy[k[j]],
-                                           has[k[j]])
-                        weight[k[j]] = f * w[:, 2] / np.linalg.norm(w, axis=1) / s_pdf[j]
-                    wo[k], pdf[k] = s_wo, s_pdf
-            weight = np.nan_to_num(weight, nan=0.0, posinf=0.0, neginf=0.0)
-            bs = dr.zeros(mi.BSDFSample3f, n)
-            bs.wo = mi.Vector3f(_float(wo[:, 0]), _float(wo[:, 1]), _float(wo[:, 2]))
-            bs.pdf = _float(pdf)
+            on = self._on(ctx, si, None, active)
+            wo64, valid = self.lobe.sample(mi.Vector3d(si.wi), mi.Float64(sample2.x),
+                                           mi.Float64(sample2.y), mi.Float64(sample1))
+            wo = mi.Vector3f(wo64)
+            valid &= on
+            pdf = self.sampler_pdf(si, wo, valid)
+            valid &= (pdf > 0.0) & dr.isfinite(pdf)
+            # f·cos θ_o / pdf: f̂ where the lane carries a footprint, else the smooth f.
+            weight = self.brdf(si, wo, valid) * wo.z / pdf
+            weight = dr.select(valid & dr.isfinite(weight), weight, 0.0)
+            bs = dr.zeros(mi.BSDFSample3f, dr.width(weight))
+            # Where nothing is sampled: wo 0 and pdf 0, as the scalar plugin.
+            bs.wo = dr.select(valid, wo, mi.Vector3f(0.0))
+            bs.pdf = dr.select(valid, pdf, 0.0)
             bs.eta = mi.Float(1.0)
             bs.sampled_component = mi.UInt32(0)
             bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
-            return bs, mi.Color3f(_float(weight))
+            return bs, mi.Color3f(weight)
 
         def traverse(self, callback):
             pass
@@ -332,7 +320,11 @@ def register():
         # Occluded samples (zero weight) cost no BSDF query, as in glint-tracer.
         active &= (ds.pdf != 0) & dr.any(em_weight != 0)
         wo = si.to_local(ds.d)
-        value, bsdf_pdf = bsdf.eval_pdf(ctx, si, wo, active)
+        value = bsdf.eval(ctx, si, wo, active)
+        # The BSDF's pdf (the MIS weight) only where the sample carries light: f̂ is 0 on most
+        # light samples of a sparse glint material.
+        carries = active & dr.any(value != 0.0) & ~ds.delta
+        bsdf_pdf = bsdf.pdf(ctx, si, wo, carries)
         mis = dr.select(ds.delta, 1.0, power_heuristic(ds.pdf, bsdf_pdf))
         return dr.select(active, em_weight * value * mis, 0.0)
 

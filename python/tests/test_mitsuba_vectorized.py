@@ -147,6 +147,55 @@ def test_bsdf_gives_the_scalar_plugins_values(plugins):
     assert np.sum(f > 0) > n // 4 and f[3] == 0.0
 
 
+@pytest.mark.parametrize("kwargs", [
+    dict(distribution="beckmann", alpha=0.1, gamma_degrees=0.5),
+    dict(distribution="ggx", alpha=0.2, alpha_y=0.05, gamma_degrees=2.0),
+    dict(distribution="beckmann", alpha=0.02, gamma_degrees=3.0),
+])
+def test_the_dr_jit_lobe_and_sampler_are_the_packages(plugins, kwargs):
+    """glint_lobe's sampler, its pdf and the smooth f (Dr.Jit, double precision) against the
+    package's on random queries: the same directions from the same uniforms (float32 ones, as
+    Mitsuba's samplers give), the same pdf where the cubature rules apply (the other lanes are
+    reported for the package's slope-space rule), the same f and sample weight."""
+    import drjit as dr
+
+    import glint_lobe
+
+    m = glint.Material(particles=1e6, **kwargs)
+    lobe = glint_lobe.Lobe(m._spec)
+    rng = np.random.default_rng(5)
+    n = 4000
+    wi = rng.normal(size=(n, 3))
+    wi[:, 2] = np.abs(wi[:, 2])
+    wi /= np.linalg.norm(wi, axis=1)[:, None]
+    u = rng.random((n, 3)).astype(np.float32).astype(np.float64)
+
+    def vector(a):
+        return mi.Vector3d(*[mi.Float64(np.ascontiguousarray(a[:, k])) for k in range(3)])
+
+    def rows(v):
+        return np.stack([np.array(c.numpy()) for c in v], axis=1)
+
+    wo, valid = lobe.sample(vector(wi), *[mi.Float64(u[:, k]) for k in range(3)])
+    s = m.sample(wi, u)
+    sampled = s["pdf"] > 0
+    assert np.array_equal(np.array(valid.numpy()), sampled) and sampled.mean() > 0.5
+    assert rows(wo)[sampled] == pytest.approx(s["wo"][sampled], abs=1e-12)
+    at = np.where(sampled[:, None], s["wo"], [0.0, 0.0, 1.0])
+    pdf, needs_package = (np.array(x.numpy()) for x in lobe.pdf(vector(wi), vector(at)))
+    here = sampled & ~needs_package
+    assert here.mean() > 0.3
+    assert pdf[here] == pytest.approx(s["pdf"][here], rel=1e-9)
+    assert np.all(pdf[needs_package] == 0)
+    f = np.array(lobe.f_smooth(vector(wi), vector(at)).numpy())
+    zero = np.zeros((n, 2))
+    expected = m.eval(wi, at, zero, zero, zero, expected_count=False)["f_smooth"]
+    assert f == pytest.approx(expected, rel=1e-9, abs=1e-300)
+    weight = f * at[:, 2] / np.where(sampled, s["pdf"], 1.0)
+    assert weight[sampled] == pytest.approx(s["smooth_weight"][sampled], rel=1e-9)
+    assert dr.width(wo) == n
+
+
 def test_direct_integrator_gives_the_scalar_plugins_values(plugins):
     """A directional light in the mirror direction of the middle pixels: each pixel's value
     (light sampling only; BSDF samples escape) equals the scalar glint_direct's."""

@@ -1,0 +1,221 @@
+"""The glint sampler (Sec. 3.4) and the smooth lobe of a uniform glint material, in Dr.Jit, for
+the vectorized Mitsuba 3 plugin (``glint_vectorized.py``).
+
+Only f̂ (Eq. 5) needs the particles, so only f̂ goes to the ``glint`` package. What the
+plugin's ``sample`` and ``pdf`` compute, and the smooth f it shades where a path carries no
+footprint, are closed forms of the material's roughness and cone radius: here they run inside
+Dr.Jit's own kernels, on the renderer's wavefront, without a round trip through NumPy. They are
+the package's formulas (``crates/brdf``: ``distribution.rs``, ``smooth.rs``, ``cone.rs``,
+``glint_sampling.rs``) in double precision, and ``python/tests/test_mitsuba_vectorized.py``
+checks them against the package on random queries:
+
+- f = D(h)·G2(ω_i, ω_o)/(4 cos θ_i cos θ_o), F = 1 (Eq. 3, height-correlated Smith G).
+- The sampler: a facet normal from D(m)(m·n) with the widened roughness α_s = 2α, ω′ its mirror
+  direction, then ω_o uniform in the cone of radius γ around ω′. The sampler's three-number
+  form u = (u0, u1, u2) splits u2's odd and even mantissa bits into the cone's two numbers, as
+  the package's ``split_uniform``.
+- Its pdf, the cone average of the widened model's density, by the package's cubature rules:
+  7 points while γ ≤ 0.35·α_s·cos θ_i, 32 points up to 2·α_s·cos θ_i. Wider cones and cones
+  across the horizon take the package's slope-space rule: ``pdf`` reports those lanes
+  (``needs_package``) and the plugin asks the package for them alone.
+"""
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+
+#: The package's bounds on α (``MIN_ALPHA``, 1) and its sampler's widening α_s/α.
+MIN_ALPHA, MAX_ALPHA, SAMPLING_SCALE = 1e-4, 1.0, 2.0
+#: The package's rule switches (``glint_sampling.rs``): the 7-point rule while
+#: γ ≤ CUBATURE_MAX_CONE·α_s·cos θ_i, the 32-point rule while γ ≤ NARROW_CONE·α_s·cos θ_i.
+CUBATURE_MAX_CONE, NARROW_CONE = 0.35, 2.0
+_SQRT_PI = math.sqrt(math.pi)
+
+
+def _seven_point_rule():
+    """(r², angle in turns, weight) on the unit disk: the centre with 1/4 and a hexagon at
+    r² = 2/3 with 1/8 each (exact to degree 5)."""
+    return [(0.0, 0.0, 0.25)] + [(2.0 / 3.0, k / 6.0, 0.125) for k in range(6)]
+
+
+def _polar_gauss_rule():
+    """(r², angle in turns, weight): 4 Gauss–Legendre nodes in r² times 8 angles, alternate
+    rings turned by half a step."""
+    inner = math.sqrt(3.0 / 7.0 - 2.0 / 7.0 * math.sqrt(6.0 / 5.0))
+    outer = math.sqrt(3.0 / 7.0 + 2.0 / 7.0 * math.sqrt(6.0 / 5.0))
+    w_inner, w_outer = (18.0 + math.sqrt(30.0)) / 72.0, (18.0 - math.sqrt(30.0)) / 72.0
+    rings = [(0.5 - 0.5 * outer, w_outer), (0.5 - 0.5 * inner, w_inner),
+             (0.5 + 0.5 * inner, w_inner), (0.5 + 0.5 * outer, w_outer)]
+    return [(u, (j + 0.5 * (k % 2)) / 8.0, weight / 8.0)
+            for k, (u, weight) in enumerate(rings) for j in range(8)]
+
+
+def _on_cone(versine, rule):
+    """A disk rule mapped onto the cone around +z by the equal-area map (``uniform_in_cap``
+    around +z, whose basis is x, y): ((x, y, z), weight) in the cone's frame."""
+    points = []
+    for u, turns, weight in rule:
+        one_minus_cos = u * versine
+        sin_theta = math.sqrt(max(one_minus_cos * (2.0 - one_minus_cos), 0.0))
+        phi = 2.0 * math.pi * turns
+        p = (sin_theta * math.cos(phi), sin_theta * math.sin(phi), 1.0 - one_minus_cos)
+        length = math.sqrt(sum(c * c for c in p))
+        points.append((tuple(c / length for c in p), weight))
+    return points
+
+
+def _orthonormal_basis(axis):
+    """Two unit vectors completing unit ``axis`` to a frame (Duff et al. 2017, as the
+    package's ``orthonormal_basis``)."""
+    sign = dr.select(axis.z >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + axis.z)
+    b = axis.x * axis.y * a
+    t = mi.Vector3d(1.0 + sign * axis.x * axis.x * a, sign * b, -sign * axis.x)
+    s = mi.Vector3d(b, sign + axis.y * axis.y * a, -axis.y)
+    return t, s
+
+
+def _compact_even_bits(x):
+    """The even bits of a 64-bit integer moved together (bit 2k to bit k)."""
+    x = x & 0x5555555555555555
+    x = (x | (x >> 1)) & 0x3333333333333333
+    x = (x | (x >> 2)) & 0x0F0F0F0F0F0F0F0F
+    x = (x | (x >> 4)) & 0x00FF00FF00FF00FF
+    x = (x | (x >> 8)) & 0x0000FFFF0000FFFF
+    return (x | (x >> 16)) & 0x00000000FFFFFFFF
+
+
+def split_uniform(u):
+    """Two uniforms from one (``mi.Float64`` in [0, 1)): the odd and the even bits of its
+    52-bit mantissa fraction, as the package's ``split_uniform``."""
+    bits = mi.UInt64(dr.clip(u, 0.0, 1.0 - 2.0 ** -52) * float(1 << 52))
+    scale = 2.0 ** -26
+    return (mi.Float64(_compact_even_bits(bits >> 1)) * scale,
+            mi.Float64(_compact_even_bits(bits)) * scale)
+
+
+class Lobe:
+    """The smooth lobe and the glint sampler of a uniform glint material (no maps, F = 1,
+    cubature pdf), built from ``glint.Material``'s specification (``Material._spec``).
+
+    Directions are ``mi.Vector3d`` in the local frame (z the normal), ``wi`` toward the viewer;
+    results are ``mi.Float64``."""
+
+    def __init__(self, spec):
+        if spec.get("pdf_quadrature", "cubature") != "cubature":
+            raise ValueError("the Dr.Jit sampler implements the cubature pdf only, not "
+                             f"pdf_quadrature = {spec['pdf_quadrature']!r}")
+        if spec.get("fresnel", "none") not in ("none", None):
+            raise ValueError("the Dr.Jit lobe implements F = 1 only")
+        self.beckmann = {"beckmann": True, "ggx": False}[spec["distribution"]]
+        alpha = float(spec["alpha"])
+        alpha_y = float(spec.get("alpha_y") or alpha)
+        self.alpha = (alpha, alpha_y)
+        self.widened = tuple(min(max(a * SAMPLING_SCALE, MIN_ALPHA), MAX_ALPHA)
+                             for a in self.alpha)
+        gamma = math.radians(float(spec["gamma_degrees"]))
+        self.versine = 2.0 * math.sin(0.5 * gamma) ** 2
+        self.sin_gamma = math.sin(gamma)
+        self.gamma_over_alpha = gamma / min(self.widened)
+        self.seven = _on_cone(self.versine, _seven_point_rule())
+        self.polar = _on_cone(self.versine, _polar_gauss_rule())
+
+    # -- the distribution ------------------------------------------------------------------
+
+    def _d(self, m, alpha):
+        """D(m) for unit m (0 below the horizon)."""
+        ax, ay = alpha
+        z2 = dr.square(m.z)
+        slope2 = (dr.square(m.x) / (ax * ax) + dr.square(m.y) / (ay * ay)) / z2
+        normalization = math.pi * ax * ay * z2 * z2
+        d = (dr.exp(-slope2) / normalization if self.beckmann
+             else dr.rcp(normalization * dr.square(1.0 + slope2)))
+        return dr.select(m.z > 0.0, d, 0.0)
+
+    def _lambda(self, w):
+        """Smith's Λ(ω) of the material's roughness for unit ω above the horizon."""
+        ax, ay = self.alpha
+        projected2 = dr.square(ax * w.x) + dr.square(ay * w.y)
+        if self.beckmann:
+            a = w.z * dr.rsqrt(projected2)
+            value = 0.5 * (dr.erf(a) - 1.0) + dr.exp(-a * a) / (2.0 * a * _SQRT_PI)
+            # erf(a) = 1 and exp(−a²) < 3e-16 beyond a = 6: Λ is 0 to double precision.
+            return dr.select((projected2 == 0.0) | (dr.square(w.z) > 36.0 * projected2),
+                             0.0, value)
+        return dr.select(projected2 == 0.0, 0.0,
+                         0.5 * (dr.sqrt(1.0 + projected2 / dr.square(w.z)) - 1.0))
+
+    def _reflected_density(self, wi, w, alpha):
+        """The density of the mirror direction ω′ = w when the facet normal is drawn from
+        D(m)(m·n) of roughness ``alpha``: D(h)(h·n)/(4 ω_i·h), h = (ω_i + ω′)/|·|."""
+        h = dr.normalize(wi + w)
+        cos = dr.dot(wi, h)
+        value = self._d(h, alpha) * h.z / (4.0 * cos)
+        return dr.select((h.z > 0.0) & (cos > 0.0), value, 0.0)
+
+    # -- the smooth BRDF ---------------------------------------------------------------------
+
+    def f_smooth(self, wi, wo):
+        """f = D(h)·G2/(4 cos θ_i cos θ_o) (F = 1); 0 unless both are above the horizon."""
+        wi, wo = dr.normalize(wi), dr.normalize(wo)
+        h = dr.normalize(wi + wo)
+        g = dr.rcp(1.0 + self._lambda(wi) + self._lambda(wo))
+        value = self._d(h, self.alpha) * g / (4.0 * wi.z * wo.z)
+        valid = ((wi.z > 0.0) & (wo.z > 0.0) & (dr.dot(wi, h) > 0.0) & (dr.dot(wo, h) > 0.0)
+                 & dr.isfinite(value))
+        return dr.select(valid, value, 0.0)
+
+    # -- the sampler ------------------------------------------------------------------------
+
+    def sample(self, wi, u0, u1, u2):
+        """The sampler's direction for three uniforms (``mi.Float64``): (ω_o, valid)."""
+        wi = dr.normalize(wi)
+        c0, c1 = split_uniform(u2)
+        # A normal from D(m)(m·n), widened: Gaussian (Beckmann) or P22 (GGX) slopes.
+        u0 = dr.minimum(u0, 1.0 - 2.0 ** -52)
+        radius = (dr.sqrt(-dr.log(1.0 - u0)) if self.beckmann
+                  else dr.sqrt(u0 / (1.0 - u0)))
+        sin_phi, cos_phi = dr.sincos(2.0 * math.pi * u1)
+        ax, ay = self.widened
+        m = dr.normalize(mi.Vector3d(-ax * radius * cos_phi, -ay * radius * sin_phi, 1.0))
+        cos_m = dr.dot(wi, m)
+        centre = 2.0 * cos_m * m - wi
+        # ω_o uniform in the cap of 1 − cos θ ≤ versine around ω′.
+        one_minus_cos = c0 * self.versine
+        sin_theta = dr.sqrt(dr.maximum(one_minus_cos * (2.0 - one_minus_cos), 0.0))
+        sin_psi, cos_psi = dr.sincos(2.0 * math.pi * c1)
+        t, s = _orthonormal_basis(centre)
+        wo = dr.normalize((1.0 - one_minus_cos) * centre
+                          + sin_theta * (cos_psi * t + sin_psi * s))
+        valid = (wi.z > 0.0) & (centre.z > 0.0) & (cos_m > 0.0) & (wo.z > 0.0)
+        return wo, valid
+
+    def pdf(self, wi, wo):
+        """The sampler's density of ω_o: (pdf, needs_package). Lanes where the package's
+        slope-space rule applies (wide cones, cones across the horizon) have pdf 0 here and
+        ``needs_package`` set."""
+        wi, wo = dr.normalize(wi), dr.normalize(wo)
+        above = (wi.z > 0.0) & (wo.z > 0.0)
+        needs_package = above & ((self.gamma_over_alpha > NARROW_CONE * wi.z)
+                                 | (wo.z < self.sin_gamma))
+        polar = above & ~needs_package & (self.gamma_over_alpha > CUBATURE_MAX_CONE * wi.z)
+        value = dr.select(above & ~needs_package & ~polar, self._cone_rule(self.seven, wi, wo),
+                          0.0)
+        # The 32-point rule only on the lanes that need it (few: grazing incidence).
+        lanes = dr.compress(polar)
+        if dr.width(lanes):
+            at = [dr.gather(mi.Vector3d, w, lanes) for w in (wi, wo)]
+            dr.scatter(value, self._cone_rule(self.polar, *at), lanes)
+        return value, needs_package
+
+    def _cone_rule(self, points, wi, wo):
+        """The cone average of the widened model's density by the rule ``points`` (unit wi,
+        wo)."""
+        t, b = _orthonormal_basis(wo)
+        total = mi.Float64(0.0)
+        for (x, y, z), weight in points:
+            w = x * t + y * b + z * wo
+            density = self._reflected_density(wi, w, self.widened)
+            total += weight * dr.select(w.z > 0.0, density, 0.0)
+        return total
