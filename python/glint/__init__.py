@@ -242,6 +242,22 @@ class Material:
         }
         return self._finish(result, single)
 
+    @property
+    def negligible_test(self):
+        """The negligible-query test's constants, for a renderer that runs the test in its own
+        kernels before asking for f̂ (the Mitsuba plugin does, in Dr.Jit): a dict of
+        ``particles`` N, ``threshold`` τ (``negligible_count``), ``law_excess_ratio`` W,
+        ``unbounded_mass`` M and ``widening_arc`` (radians). A query over a footprint of area
+        a(A) is skipped, f̂ = 0, when
+        λ̄ = N·a(A)·(W·B[θ_a − δ, θ_a + δ]·σ_cap + M) < τ, with the conic's bounding cap
+        around h = (ω_i + ω_o)/|ω_i + ω_o| (cos θ_max = √(a² − sin²(γ/2))/a, sin θ_max =
+        sin(γ/2)/a, a = |ω_i + ω_o|/2; never skipped when a ≤ sin(γ/2)),
+        σ_cap = 2π sin²θ_max/(1 + cos θ_max), δ = θ_max + ``widening_arc``, θ_a the angle of h
+        from the normal and B the distribution's bound on D(m)(m·n) between two polar angles
+        (glint-brdf's ``Microfacet::particle_density_bound``). None for a material with maps or
+        with ``negligible_count = 0``."""
+        return self._native.negligible_test
+
     def f_hat(self, wi, wo, uv, duv_dx, duv_dy):
         """f̂ alone for n queries, as ``eval`` computes it: (n,) when F is grey, else (n, 3);
         NaN on the rows ``eval`` refuses (its ``error`` column names why). What a renderer

@@ -148,7 +148,7 @@ def register():
             super().__init__(props)
             self.params, self.uv_scale = material_parameters(props)
             self.material = glint.Material(**self.params)
-            self.lobe = Lobe(self.material._spec)
+            self.lobe = Lobe(self.material._spec, self.material.negligible_test)
             self.m_components = [flags]
             self.m_flags = flags
 
@@ -181,9 +181,15 @@ def register():
         def brdf(self, si, wo, active):
             """f (no cosine): f̂ where the lane carries a footprint (the smooth f where the
             package refuses it), the smooth f elsewhere."""
-            _, _, _, has = self.footprint(si)
-            smooth = mi.Float(self.lobe.f_smooth(mi.Vector3d(si.wi), mi.Vector3d(wo)))
-            glint_value, refused = self.f_hat(si, wo, active & has)
+            _, dx, dy, has = self.footprint(si)
+            wi64, wo64 = mi.Vector3d(si.wi), mi.Vector3d(wo)
+            smooth = mi.Float(self.lobe.f_smooth(wi64, wo64))
+            ask = active & has
+            # Queries the package would skip as negligible are answered here (f̂ = 0).
+            skips = self.lobe.skips(wi64, wo64, mi.Vector2d(dx), mi.Vector2d(dy))
+            if skips is not None:
+                ask &= ~skips
+            glint_value, refused = self.f_hat(si, wo, ask)
             return dr.select(has & ~refused, glint_value, smooth)
 
         def sampler_pdf(self, si, wo, active):

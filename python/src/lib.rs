@@ -257,6 +257,23 @@ impl Material {
         Ok(Self { inner })
     }
 
+    /// The negligible-query test's constants (glint-brdf's `NegligibleTestConstants`) as a
+    /// dict, for a material of one roughness level without a density map whose test is on;
+    /// else None.
+    #[getter]
+    fn negligible_test<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(c) = self.inner.brdf().negligible_test() else {
+            return Ok(None);
+        };
+        let dict = PyDict::new(py);
+        dict.set_item("particles", c.particles)?;
+        dict.set_item("threshold", c.threshold)?;
+        dict.set_item("law_excess_ratio", c.law_excess_ratio)?;
+        dict.set_item("unbounded_mass", c.unbounded_mass)?;
+        dict.set_item("widening_arc", c.widening_arc)?;
+        Ok(Some(dict))
+    }
+
     /// Whether f_hat, f_smooth and weights are one number per row.
     #[getter]
     fn gray(&self) -> bool {

@@ -195,6 +195,31 @@ def test_the_dr_jit_lobe_and_sampler_are_the_packages(plugins, kwargs):
     assert weight[sampled] == pytest.approx(s["smooth_weight"][sampled], rel=1e-9)
     assert dr.width(wo) == n
 
+    # The negligible-query test: the lanes skipped here are skipped by the package, with its λ̄.
+    m = glint.Material(particles=1e7, negligible_count=1e-4, **kwargs)
+    lobe = glint_lobe.Lobe(m._spec, m.negligible_test)
+    mirror = wi * np.array([-1.0, -1.0, 1.0])
+    wo = np.where(np.arange(n)[:, None] % 2 == 0, mirror + rng.normal(0, 0.1, (n, 3)),
+                  rng.normal(size=(n, 3)))
+    wo[:, 2] = np.abs(wo[:, 2])
+    side = 10 ** rng.uniform(-4.5, -1.5, n)
+    dx = np.stack([side, 0.3 * side * rng.normal(size=n)], 1)
+    dy = np.stack([0.3 * side * rng.normal(size=n), side], 1)
+    dx[7] = [2e15, 0.0]  # refused by the package: never skipped
+    r = m.eval(wi, wo, rng.uniform(0, 1, (n, 2)), dx, dy, expected_count=False)
+    packaged = np.isfinite(r["negligible_bound"])
+
+    def vector2(a):
+        return mi.Vector2d(*[mi.Float64(np.ascontiguousarray(a[:, k])) for k in range(2)])
+
+    skips = np.array(lobe.skips(vector(wi), vector(wo), vector2(dx), vector2(dy)).numpy())
+    bound = np.array(lobe.negligible_bound(vector(wi), vector(wo), vector2(dx),
+                                           vector2(dy)).numpy())
+    assert not np.any(skips & ~packaged) and not skips[7]
+    assert skips.sum() >= 0.99 * packaged.sum() and packaged.mean() > 0.1, packaged.mean()
+    assert bound[packaged] == pytest.approx(r["negligible_bound"][packaged], rel=1e-12)
+    assert np.all(bound[(r["error"] == "") & ~packaged] >= 1e-4 * (1 - 1e-12))
+
 
 def test_direct_integrator_gives_the_scalar_plugins_values(plugins):
     """A directional light in the mirror direction of the middle pixels: each pixel's value

@@ -674,3 +674,99 @@ fn every_entry_point_normalizes_its_directions() {
         assert!(glint.sample(bad, [0.3, 0.4, 0.5, 0.6]).is_none());
     }
 }
+
+/// λ̄ from `DiscreteBrdf::negligible_test`'s constants and the formula its docs give (the
+/// conic's bounding cap in closed form) equals the bound the material skips queries by: the
+/// same λ̄ on every skipped query, at least τ on every traversed one. What a renderer running
+/// the test in its own kernels relies on (python/mitsuba/glint_lobe.py does). `None` for a
+/// material with maps or without the test.
+#[test]
+fn negligible_test_constants_give_the_materials_bound() {
+    let d = Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap();
+    let mut parameters = GlintParameters::new(d);
+    parameters.particles = 1_000_000_000;
+    parameters.gamma_radians = 0.5_f64.to_radians();
+    parameters.negligible_count = 1e-9;
+    let brdf = DiscreteBrdf::new(parameters.clone()).unwrap();
+    let c = brdf.negligible_test().unwrap();
+    assert_eq!((c.particles, c.threshold), (1e9, 1e-9));
+    let sin_half = (0.5 * parameters.gamma_radians).sin();
+    let bound = |wi: DVec3, wo: DVec3, area: f64| {
+        let sum = wi + wo;
+        let a = 0.5 * sum.length();
+        let k1 = a * a - sin_half * sin_half;
+        if k1 <= 0.0 {
+            return f64::INFINITY;
+        }
+        let (cap_cos, cap_sin) = (k1.sqrt() / a, sin_half / a);
+        let axis = sum / sum.length();
+        let (arc_sin, arc_cos) = c.widening_arc.sin_cos();
+        let (delta_cos, delta_sin) = (
+            cap_cos * arc_cos - cap_sin * arc_sin,
+            cap_sin * arc_cos + cap_cos * arc_sin,
+        );
+        let (axis_cos, axis_sin) = (axis.z, (1.0 - axis.z * axis.z).max(0.0).sqrt());
+        let cos_near = if axis_cos >= delta_cos {
+            1.0
+        } else {
+            axis_cos * delta_cos + axis_sin * delta_sin
+        };
+        let cos_far = axis_cos * delta_cos - axis_sin * delta_sin;
+        let cap = 2.0 * PI * cap_sin * cap_sin / (1.0 + cap_cos);
+        c.particles
+            * area
+            * (c.law_excess_ratio * d.particle_density_bound(cos_near, cos_far) * cap
+                + c.unbounded_mass)
+    };
+    let mut rng = SplitMix64::new(41);
+    let mut scratch = QueryScratch::new();
+    let (mut skipped, mut traversed) = (0, 0);
+    for k in 0..3000 {
+        let [a, b, c0, c1, e] = rng.uniforms();
+        let (theta, phi) = (1.4 * a, 2.0 * PI * b);
+        let wi = direction(theta, phi);
+        // Half near the mirror direction (traversed), half anywhere (mostly skipped).
+        let wo = if k % 2 == 0 {
+            direction(theta + 0.1 * (c0 - 0.5), phi + PI + 0.1 * (c1 - 0.5))
+        } else {
+            direction(1.5 * c0, 2.0 * PI * c1)
+        };
+        let side = 10f64.powf(-4.0 + 2.5 * e);
+        let footprint = Footprint::new(
+            DVec2::new(a, c1),
+            DVec2::new(side, 0.2 * side),
+            DVec2::new(-0.1 * side, side),
+        )
+        .unwrap();
+        let e = brdf.at(&footprint, &mut scratch).evaluate(wi, wo);
+        if !(wi.z > 0.0 && wo.z > 0.0) {
+            continue;
+        }
+        let ours = bound(wi.normalize(), wo.normalize(), footprint.area());
+        match e.negligible {
+            Some(lambda) => {
+                skipped += 1;
+                assert!(
+                    (ours - lambda).abs() <= 1e-12 * lambda,
+                    "{ours} vs {lambda}"
+                );
+                assert_eq!(e.count, 0.0);
+            }
+            None => {
+                traversed += 1;
+                assert!(ours >= c.threshold * (1.0 - 1e-12), "{ours}");
+            }
+        }
+    }
+    assert!(
+        skipped > 300 && traversed > 100,
+        "{skipped} skipped, {traversed} traversed"
+    );
+    parameters.negligible_count = 0.0;
+    assert!(
+        DiscreteBrdf::new(parameters)
+            .unwrap()
+            .negligible_test()
+            .is_none()
+    );
+}

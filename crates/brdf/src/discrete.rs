@@ -46,8 +46,8 @@ use std::sync::Arc;
 use glam::{DVec2, DVec3};
 use glint_sphere::{ConeRadius, SphericalConic};
 use glint_tree::{
-    CountTree, CountTreeConfig, DensityMap, Footprint, MultinomialMode, QueryResult, QueryScratch,
-    expected_conic_solid_angle,
+    CountTree, CountTreeConfig, DensityMap, Footprint, LEAF_CELL_ARC, MultinomialMode, QueryResult,
+    QueryScratch, expected_conic_solid_angle,
 };
 
 use crate::bxdf::{Bxdf, BxdfSample};
@@ -190,6 +190,33 @@ impl Layer {
     fn density_at(&self, uv: DVec2) -> f64 {
         self.tree.density_map().map_or(1.0, |map| map.value_at(uv))
     }
+}
+
+/// What a renderer needs to run the negligible-query test (`crate::negligible`) in its own
+/// kernels before asking for f̂, for a material of one roughness level without a density map:
+/// the query of (ω_i, ω_o) over a footprint of area a(A) is skipped, f̂ = 0, when
+///
+/// ```text
+///   λ̄ = particles·a(A)·( law_excess_ratio·B[θ_a − δ, θ_a + δ]·σ_cap + unbounded_mass ) < threshold,
+/// ```
+///
+/// with the conic's bounding cap (`glint_sphere::SphericalConic::bounding_cap`: axis h =
+/// (ω_i + ω_o)/|ω_i + ω_o|, cos θ_max = √(a² − sin²(γ/2))/a and sin θ_max = sin(γ/2)/a,
+/// a = |ω_i + ω_o|/2; always traversed when a² ≤ sin²(γ/2)), σ_cap = 2π sin²θ_max/(1 + cos θ_max),
+/// δ = θ_max + `widening_arc`, θ_a the angle of h from the normal, and B
+/// [`Microfacet::particle_density_bound`] of the material's distribution.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NegligibleTestConstants {
+    /// N, particles per unit square.
+    pub particles: f64,
+    /// τ, the material's `negligible_count`.
+    pub threshold: f64,
+    /// W: how far the tree's directional law exceeds p.
+    pub law_excess_ratio: f64,
+    /// M: the mass of the final cells where the bound on p is 0.
+    pub unbounded_mass: f64,
+    /// 2·LEAF_CELL_ARC (radians): the cap's widening.
+    pub widening_arc: f64,
 }
 
 /// One tree query (Eq. 6) with f̂ from it (Eq. 5).
@@ -689,6 +716,26 @@ impl DiscreteBrdf {
                 footprint.area() * density,
                 conic,
             )
+        })
+    }
+
+    /// The negligible-query test's constants ([`NegligibleTestConstants`]), for a material of
+    /// one roughness level without a density map whose test is on; `None` otherwise.
+    #[must_use]
+    pub fn negligible_test(&self) -> Option<NegligibleTestConstants> {
+        let [layer] = self.layers.as_slice() else {
+            return None;
+        };
+        if layer.tree.density_map().is_some() {
+            return None;
+        }
+        let excess = layer.negligible_test?.law_excess();
+        Some(NegligibleTestConstants {
+            particles: self.parameters.particles as f64,
+            threshold: self.parameters.negligible_count,
+            law_excess_ratio: excess.ratio,
+            unbounded_mass: excess.unbounded_mass,
+            widening_arc: 2.0 * LEAF_CELL_ARC,
         })
     }
 

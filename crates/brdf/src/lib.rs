@@ -62,7 +62,7 @@ pub mod smooth;
 pub mod surface_maps;
 
 pub use bxdf::{Bxdf, BxdfSample};
-pub use discrete::{DiscreteBrdf, GlintParameters};
+pub use discrete::{DiscreteBrdf, GlintParameters, NegligibleTestConstants};
 pub use distribution::{DistributionKind, Microfacet, NormalSampling};
 pub use error::BrdfError;
 pub use fresnel::Fresnel;

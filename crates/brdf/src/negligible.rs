@@ -57,6 +57,11 @@ impl NegligibleTest {
         }
     }
 
+    /// The constants W and M of the bound (module docs).
+    pub(crate) fn law_excess(&self) -> DirectionalLawExcess {
+        self.law_excess
+    }
+
     /// λ̄ for a footprint of `area` holding N = `particles` per unit square: a few
     /// multiplications, a square root and an exponential. Infinite for hyperbolic conics (no
     /// cap holds them).
