@@ -183,26 +183,40 @@ def register():
             package refuses it), the smooth f elsewhere."""
             _, dx, dy, has = self.footprint(si)
             wi64, wo64 = mi.Vector3d(si.wi), mi.Vector3d(wo)
-            smooth = mi.Float(self.lobe.f_smooth(wi64, wo64))
             ask = active & has
             # Queries the package would skip as negligible are answered here (f̂ = 0).
             skips = self.lobe.skips(wi64, wo64, mi.Vector2d(dx), mi.Vector2d(dy))
             if skips is not None:
                 ask &= ~skips
-            glint_value, refused = self.f_hat(si, wo, ask)
-            return dr.select(has & ~refused, glint_value, smooth)
+            value, refused = self.f_hat(si, wo, ask)
+            # The smooth f on the lanes without a footprint or whose footprint was refused
+            # (none at a first hit, all after it).
+            smooth = mi.Bool(active) & (~has | refused)
+            lanes = dr.compress(smooth)
+            if dr.width(lanes):
+                wi_s, wo_s = (mi.Vector3d(dr.gather(mi.Vector3f, v, lanes)) for v in (si.wi, wo))
+                dr.scatter(value, mi.Float(self.lobe.f_smooth(wi_s, wo_s)), lanes)
+            return value
 
         def sampler_pdf(self, si, wo, active):
-            """The glint sampler's density: Dr.Jit's cubature rules, the package's slope-space
-            rule on the lanes that need it."""
-            wi64, wo64 = mi.Vector3d(si.wi), mi.Vector3d(wo)
-            pdf, needs_package = self.lobe.pdf(wi64, wo64)
-            pdf = mi.Float(pdf)
-            index = dr.compress(active & needs_package)
+            """The glint sampler's density on the ``active`` lanes (0 elsewhere), computed on
+            those lanes alone (a light sample's MIS weight is asked for the few that carry
+            light): Dr.Jit's cubature rules, the package's slope-space rule on the lanes that
+            need it."""
+            width = _width(si.wi, wo, active)
+            pdf = dr.zeros(mi.Float, width)
+            lanes = dr.compress(mi.Bool(active) if isinstance(active, bool) else active)
+            if dr.width(lanes) == 0:
+                return pdf
+            wi64, wo64 = (mi.Vector3d(dr.gather(mi.Vector3f, v, lanes)) for v in (si.wi, wo))
+            value, needs_package = self.lobe.pdf(wi64, wo64)
+            value = mi.Float(value)
+            index = dr.compress(needs_package)
             if dr.width(index):
                 rows = _packed_rows(index, (wi64, wo64))
                 q = self.material.pdf(rows[:, 0:3], rows[:, 3:6])
-                dr.scatter(pdf, _float(np.where(np.isfinite(q), q, 0.0)), index)
+                dr.scatter(value, _float(np.where(np.isfinite(q), q, 0.0)), index)
+            dr.scatter(pdf, value, lanes)
             return pdf
 
         def _on(self, ctx, si, wo, active):
