@@ -270,7 +270,9 @@ class Lobe:
         polar = above & ~needs_package & (self.gamma_over_alpha > CUBATURE_MAX_CONE * wi.z)
         value = dr.select(above & ~needs_package & ~polar, self._cone_rule(self.seven, wi, wo),
                           0.0)
-        # The 32-point rule only on the lanes that need it (few: grazing incidence).
+        # One kernel for the 7-point rule and both masks; then the 32-point rule only on the
+        # lanes that need it (few: grazing incidence).
+        dr.eval(value, polar, needs_package)
         lanes = dr.compress(polar)
         if dr.width(lanes):
             at = [dr.gather(mi.Vector3d, w, lanes) for w in (wi, wo)]

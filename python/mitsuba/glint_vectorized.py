@@ -75,6 +75,8 @@ def _packed_rows(index, vectors):
     """The lanes ``index`` of Dr.Jit ``vectors`` as one (n, k) float64 NumPy array, k their
     components in order: packed in one Dr.Jit buffer and copied out once."""
     n = dr.width(index)
+    # Gathers read memory: evaluate every source in one kernel rather than one each.
+    dr.eval(*vectors)
     components = [c for v in vectors for c in v]
     k = len(components)
     packed = dr.zeros(mi.Float64, n * k)
@@ -194,6 +196,7 @@ def register():
             smooth = mi.Bool(active) & (~has | refused)
             lanes = dr.compress(smooth)
             if dr.width(lanes):
+                dr.eval(si.wi, wo)
                 wi_s, wo_s = (mi.Vector3d(dr.gather(mi.Vector3f, v, lanes)) for v in (si.wi, wo))
                 dr.scatter(value, mi.Float(self.lobe.f_smooth(wi_s, wo_s)), lanes)
             return value
@@ -208,6 +211,7 @@ def register():
             lanes = dr.compress(mi.Bool(active) if isinstance(active, bool) else active)
             if dr.width(lanes) == 0:
                 return pdf
+            dr.eval(si.wi, wo)
             wi64, wo64 = (mi.Vector3d(dr.gather(mi.Vector3f, v, lanes)) for v in (si.wi, wo))
             value, needs_package = self.lobe.pdf(wi64, wo64)
             value = mi.Float(value)

@@ -37,7 +37,9 @@
 //! **Over ψ.** The ray's mass G(ψ) is smooth except where a ray grazes the conic's boundary,
 //! the zeros of the discriminant of q(H) in ρ, a quadratic form in (cos ψ, sin ψ); there G has a
 //! square-root edge. The circle is cut at those angles (and at the quarter turns, so no arc is
-//! longer than π/2), and each arc takes the 15-point Gauss–Kronrod rule after the substitution
+//! longer than π/2); arcs whose rays all miss the conic carry no mass and are dropped; where
+//! the conic's boundary crosses the horizon's (ω′_z = 0) on a ray, G has a kink, and the live
+//! arcs are cut there too. Each arc takes the 15-point Gauss–Kronrod rule after the substitution
 //! ψ = ψ_0 + (ψ_1 − ψ_0)(3t² − 2t³), which turns a square-root edge into a smooth one. G can
 //! still change quickly inside an arc (a very anisotropic lobe stretches the conic into a
 //! sliver in scaled slopes), so the rule is adaptive: the piece with the largest Kronrod–Gauss
