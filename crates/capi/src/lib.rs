@@ -579,7 +579,7 @@ impl Default for GlintMaterialParams {
             expected_footprint_area: 1e-6,
             pdf_quadrature: GlintPdfQuadrature::GLINT_PDF_CUBATURE as u32,
             pdf_points: 64,
-            negligible_count: 0.0,
+            negligible_count: glint_eval::DEFAULT_NEGLIGIBLE_COUNT,
             density_map: ptr::null(),
             density_map_width: 0,
             density_map_height: 0,
@@ -899,11 +899,15 @@ impl GlintScratch {
 mod tests {
     use super::*;
 
+    /// C's defaults are Rust's, except the negligible-query test, on at 10⁻¹² as in `eval`,
+    /// Python and glint-tracer (Rust's `GlintParameters::new` leaves it off).
     #[test]
-    fn defaults_are_glint_parameters_new() {
+    fn defaults_are_glint_parameters_new_with_evals_negligible_count() {
         let beckmann = Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap();
         let parameters = glint_parameters(&GlintMaterialParams::default()).unwrap();
-        assert_eq!(parameters, GlintParameters::new(beckmann));
+        let mut expected = GlintParameters::new(beckmann);
+        expected.negligible_count = glint_eval::DEFAULT_NEGLIGIBLE_COUNT;
+        assert_eq!(parameters, expected);
     }
 
     #[test]

@@ -96,7 +96,7 @@ pub enum GlintPdfQuadrature {
 /// | `expected_footprint_area` | 1e-6 | finite, > 0 |
 /// | `pdf_quadrature` | `GLINT_PDF_CUBATURE` | a `GlintPdfQuadrature` |
 /// | `pdf_points` | 64 | 1 to 4096 |
-/// | `negligible_count` | 0 | finite, >= 0 (0 = every query traversed) |
+/// | `negligible_count` | 1e-12 | finite, >= 0: queries provably below this expected count answer 0 untraversed (glint-tracer's and `eval`'s default; 0 = every query traversed) |
 /// | `density_map`, `_width`, `_height` | NULL, 0, 0 | values in [0, 1], not all 0 |
 /// | `alpha_map`, `_width`, `_height` | NULL, 0, 0 | values in [1e-4, 1] |
 /// | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |

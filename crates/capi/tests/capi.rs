@@ -434,8 +434,10 @@ fn below_the_horizon_gives_zeros_and_no_sample() {
     }
 }
 
+/// Rust's defaults, except the negligible-query test: on at 10⁻¹² as in `eval`, Python and
+/// glint-tracer.
 #[test]
-fn defaults_are_glint_parameters_new() {
+fn defaults_are_glint_parameters_new_with_evals_negligible_count() {
     let p = default_params();
     assert_eq!(p.distribution, GlintDistribution::GLINT_BECKMANN as u32);
     assert_eq!((p.alpha_x, p.alpha_y, p.particles), (0.1, 0.1, 1e6));
@@ -446,7 +448,7 @@ fn defaults_are_glint_parameters_new() {
         GlintMultinomial::GLINT_MULTINOMIAL_EXACT as u32
     );
     assert_eq!((p.expected_footprint_area, p.pdf_points), (1e-6, 64));
-    assert_eq!(p.negligible_count, 0.0);
+    assert_eq!(p.negligible_count, 1e-12);
 }
 
 #[test]
