@@ -4,9 +4,9 @@ floor in the same integrator, alternating, in one run.
     python python/benchmarks/mitsuba_floor.py [--variant llvm_ad_rgb] [--integrator glint_direct]
         [--resolution 160x90] [--spp 8] [--pairs 3]
 
-Prints each render's time and the medians of the times and of the pairs' ratios (glint /
-roughconductor). Each configuration is rendered once first (Dr.Jit compiles its kernels; not
-timed). ``llvm_*`` variants need ``DRJIT_LIBLLVM_PATH`` (python/README.md).
+Prints each render's time, the medians of the times and of the pairs' ratios (glint /
+roughconductor), and the ratios' range. Each configuration is rendered once first (Dr.Jit
+compiles its kernels; not timed). ``llvm_*`` variants need ``DRJIT_LIBLLVM_PATH`` (python/README.md).
 """
 
 import argparse
@@ -50,7 +50,8 @@ def main():
     print(f"{args.variant}, {args.integrator}, {args.resolution}, {args.spp} spp: glint "
           f"{statistics.median(times['glint']):.2f} s, roughconductor "
           f"{statistics.median(times['roughconductor']):.2f} s, glint / roughconductor "
-          f"{statistics.median(ratios):.2f}× (median of {args.pairs} pairs)")
+          f"{statistics.median(ratios):.2f}× (median of {args.pairs} pairs; "
+          f"{min(ratios):.2f}–{max(ratios):.2f}×)")
 
 
 if __name__ == "__main__":
