@@ -29,9 +29,10 @@ __all__ = ["Material", "__version__", "render", "write_exr", "write_png"]
 
 
 def _rows(name, value, width):
-    """A float64 array of shape (n, width) and whether the input was one row. Views (columns of
-    a wider array) are kept as they are: the native module reads strided arrays in place."""
-    array = np.asarray(value, dtype=np.float64)
+    """A float64 array of shape (n, width) and whether the input was one row. Aligned views
+    (columns of a wider array) are kept as they are: the native module reads strided arrays in
+    place; unaligned ones (fields of a packed record) are copied."""
+    array = np.require(value, dtype=np.float64, requirements=["A"])
     single = array.ndim == 1
     if single:
         array = array.reshape(1, -1)

@@ -17,7 +17,8 @@ checks them against the package on random queries:
 - The negligible-query test (``Material.negligible_test``): lanes whose bound λ̄ on the
   expected count is below τ are answered f̂ = 0 here, as the package would answer them,
   instead of being sent to it (three in four light samples of the sphere-lights example).
-  Lanes within a relative 1e-9 of τ go to the package, which decides.
+  Lanes just below τ (within the rounding differences of the two computations) go to the
+  package, which decides.
 - Its pdf, the cone average of the widened model's density, by the package's cubature rules:
   7 points while γ ≤ 0.35·α_s·cos θ_i, 32 points up to 2·α_s·cos θ_i. Wider cones and cones
   across the horizon take the package's slope-space rule: ``pdf`` reports those lanes
@@ -37,8 +38,12 @@ CUBATURE_MAX_CONE, NARROW_CONE = 0.35, 2.0
 #: The package's largest footprint edge component (``Footprint::MAX_EDGE``): a footprint
 #: beyond it is refused, never skipped.
 MAX_EDGE = 1e15
-#: Lanes skip the package only where λ̄ < τ·(1 − SKIP_MARGIN): the package's own λ̄ differs
-#: from this one by roundings (~1e-15), so every lane skipped here is one it skips.
+#: Lanes skip the package only where λ̄ < τ·(1 − margin): the package's own λ̄ differs from
+#: this one by roundings. Those are ~1e-15 relative, except through the density bound B, whose
+#: logarithm moves by up to 2/α² per unit of t = tan²θ (Beckmann and GGX), and t by ~1e-13
+#: (a few ulps of a cosine, at grazing angles): margin = SKIP_MARGIN + 2e-13/α², α the smaller
+#: roughness (2.5e-8 at α = 0.02, 2e-5 at 1e-4). Every lane skipped here is one the package
+#: skips.
 SKIP_MARGIN = 1e-9
 _SQRT_PI = math.sqrt(math.pi)
 
@@ -130,6 +135,7 @@ class Lobe:
         self.gamma_over_alpha = gamma / min(self.widened)
         self.sin_half = math.sin(0.5 * gamma)
         self.negligible = negligible_test
+        self.skip_margin = SKIP_MARGIN + 2e-13 / min(self.alpha) ** 2
         self.seven = _on_cone(self.versine, _seven_point_rule())
         self.polar = _on_cone(self.versine, _polar_gauss_rule())
 
@@ -210,17 +216,19 @@ class Lobe:
             + c["unbounded_mass"])
         return dr.select((k1 > 0.0) & ~dr.isnan(bound), bound, math.inf)
 
-    def skips(self, wi, wo, duv_dx, duv_dy):
-        """The lanes the package would answer f̂ = 0 by its negligible-query test (with
-        ``SKIP_MARGIN``): directions above the horizon, a footprint it accepts, λ̄ < τ. None
-        when the material has no test (``negligible_test`` None)."""
+    def skips(self, wi, wo, uv, duv_dx, duv_dy):
+        """The lanes the package would answer f̂ = 0 by its negligible-query test (with the
+        skip margin): directions above the horizon, a footprint it accepts (finite, edges
+        within ``MAX_EDGE``), λ̄ < τ. None when the material has no test (``negligible_test``
+        None)."""
         if self.negligible is None:
             return None
-        accepted = (dr.all(dr.isfinite(duv_dx)) & dr.all(dr.isfinite(duv_dy))
+        accepted = (dr.all(dr.isfinite(uv)) & dr.all(dr.isfinite(duv_dx))
+                    & dr.all(dr.isfinite(duv_dy))
                     & (dr.max(dr.abs(duv_dx)) <= MAX_EDGE) & (dr.max(dr.abs(duv_dy)) <= MAX_EDGE))
         bound = self.negligible_bound(wi, wo, duv_dx, duv_dy)
         return (accepted & (wi.z > 0.0) & (wo.z > 0.0)
-                & (bound < self.negligible["threshold"] * (1.0 - SKIP_MARGIN)))
+                & (bound < self.negligible["threshold"] * (1.0 - self.skip_margin)))
 
     # -- the smooth BRDF ---------------------------------------------------------------------
 

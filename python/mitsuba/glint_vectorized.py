@@ -183,11 +183,12 @@ def register():
         def brdf(self, si, wo, active):
             """f (no cosine): f̂ where the lane carries a footprint (the smooth f where the
             package refuses it), the smooth f elsewhere."""
-            _, dx, dy, has = self.footprint(si)
+            uv, dx, dy, has = self.footprint(si)
             wi64, wo64 = mi.Vector3d(si.wi), mi.Vector3d(wo)
             ask = active & has
             # Queries the package would skip as negligible are answered here (f̂ = 0).
-            skips = self.lobe.skips(wi64, wo64, mi.Vector2d(dx), mi.Vector2d(dy))
+            skips = self.lobe.skips(wi64, wo64, mi.Vector2d(uv), mi.Vector2d(dx),
+                                    mi.Vector2d(dy))
             if skips is not None:
                 ask &= ~skips
             value, refused = self.f_hat(si, wo, ask)

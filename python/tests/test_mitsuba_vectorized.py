@@ -206,16 +206,19 @@ def test_the_dr_jit_lobe_and_sampler_are_the_packages(plugins, kwargs):
     dx = np.stack([side, 0.3 * side * rng.normal(size=n)], 1)
     dy = np.stack([0.3 * side * rng.normal(size=n), side], 1)
     dx[7] = [2e15, 0.0]  # refused by the package: never skipped
-    r = m.eval(wi, wo, rng.uniform(0, 1, (n, 2)), dx, dy, expected_count=False)
+    uv = rng.uniform(0, 1, (n, 2))
+    uv[8] = [math.nan, 0.5]  # refused too
+    r = m.eval(wi, wo, uv, dx, dy, expected_count=False)
     packaged = np.isfinite(r["negligible_bound"])
 
     def vector2(a):
         return mi.Vector2d(*[mi.Float64(np.ascontiguousarray(a[:, k])) for k in range(2)])
 
-    skips = np.array(lobe.skips(vector(wi), vector(wo), vector2(dx), vector2(dy)).numpy())
+    skips = np.array(lobe.skips(vector(wi), vector(wo), vector2(uv), vector2(dx),
+                                vector2(dy)).numpy())
     bound = np.array(lobe.negligible_bound(vector(wi), vector(wo), vector2(dx),
                                            vector2(dy)).numpy())
-    assert not np.any(skips & ~packaged) and not skips[7]
+    assert not np.any(skips & ~packaged) and not skips[7] and not skips[8]
     assert skips.sum() >= 0.99 * packaged.sum() and packaged.mean() > 0.1, packaged.mean()
     assert bound[packaged] == pytest.approx(r["negligible_bound"][packaged], rel=1e-12)
     assert np.all(bound[(r["error"] == "") & ~packaged] >= 1e-4 * (1 - 1e-12))

@@ -312,7 +312,7 @@ impl Rays {
                         hi = mid;
                     }
                 }
-                crossings.push((0.5 * (lo + hi)).rem_euclid(std::f64::consts::TAU));
+                crossings.push((0.5 * (lo + hi)).clamp(start, end));
             }
             if sign != 0.0 {
                 previous = sign;
