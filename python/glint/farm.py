@@ -1,28 +1,41 @@
 """Render an animation on a Dask cluster: frames × tiles, merged, bit-identical to one machine.
 
     python -m glint.farm SCENE --frames A..B --out DIR [--tile SIZE] [--spp N]
-        [--resolution WxH] [--scheduler ADDRESS | --workers K] [--overwrite]
+        [--resolution WxH] [--scheduler ADDRESS | --workers K] [--threads N] [--retries N]
+        [--worker-timeout SECONDS] [--overwrite] [--quiet]
 
 Each task renders one tile (``glint.render`` with ``pixel_bounds``) of one frame on a Dask
 worker. A tile's pixels are exactly the full frame's pixels there (each pixel's samples depend
 on the scene, the settings and the pixel alone), so the frames merged here equal, bit for bit,
-the ones ``cargo xtask render --frames A..B`` writes on one machine. The client writes
-``DIR/<scene>_<frame>.exr``, ``.png`` and ``.json`` (the frame's summary) atomically: each to a
-temporary file, then renamed, the JSON last. A frame whose three outputs exist and whose JSON
-records the same scene (SHA-256 of the scene file and its assets), resolution, samples and glint version is
-skipped, so an interrupted run continues where it stopped; ``--overwrite`` renders it again.
+the ones ``cargo xtask render --frames A..B`` writes on one machine. The farm renders whole
+frames: a scene file that sets ``[render] pixel_bounds`` is refused.
 
-Tasks that raise are retried (``retries``); tasks on a worker that dies are run again on
-another (Dask's own rescheduling). Workers need the ``glint`` package (install the same wheel
-everywhere) and must see the scene file and its assets at the same path (a shared file
-system). See ``docs/farm.md`` in the repository for clusters (Slurm through dask-jobqueue).
+Every argument is checked before anything starts (no folder, no cluster), with a
+``ValueError`` or ``TypeError`` naming it. ``frames`` is ``(first, last)`` (a tuple of two
+ints, inclusive) or any iterable of ints, read once; a frame given twice is rendered once.
+
+The client writes ``DIR/<scene>_<frame>.exr``, ``.png`` and ``.json`` (the frame's summary)
+atomically: each to a temporary file, then renamed, the JSON last. A frame whose three outputs
+exist and whose JSON records the same scene (SHA-256 of the scene file and its assets),
+resolution, samples and glint version is skipped, so an interrupted run continues where it
+stopped; ``--overwrite`` renders it again.
+
+Tasks that raise are retried (``retries``);
+tasks on a worker that dies are run again on another (Dask's own rescheduling). Workers need
+the ``glint`` package (install the same wheel everywhere) and must see the scene file and its
+assets at the same path (a shared file system). See ``docs/farm.md`` in the repository for
+clusters (Slurm through dask-jobqueue).
 
 From Python: ``glint.farm.render_frames(scene, frames, out, ...)`` returns the paths written.
 """
 
 import argparse
+import asyncio
+import collections
 import hashlib
+import itertools
 import json
+import math
 import os
 import sys
 import time
@@ -33,13 +46,36 @@ import numpy as np
 from . import __version__
 from ._render import render, write_exr, write_png
 
+try:
+    import tomllib
+except ImportError:  # Python < 3.11
+    try:
+        import tomli as tomllib
+    except ImportError:
+        tomllib = None
+
 #: The most frames one run renders, as ``cargo xtask render --frames``.
 MAX_FRAMES = 100_000
+
+#: The largest frame number, either sign: frames reach the camera as doubles, exact to 2⁵³.
+MAX_FRAME_NUMBER = 2**53
+
+#: The most samples per pixel: the tracer's sampler's limit (``MAX_SAMPLES_PER_PIXEL`` in
+#: ``crates/tracer/src/sampler.rs``, the Sobol sequence's length).
+MAX_SPP = 1 << 16
+
+#: The largest image width or height, the tracer's.
+MAX_SIDE = 16384
+
+#: The most render threads per task, as ``glint.render``.
+MAX_THREADS = 4096
+
+#: The most worker processes of a local cluster (one machine).
+MAX_LOCAL_WORKERS = 1024
 
 #: The summary fields summed over a frame's tiles.
 _SUMMED = ("seconds", "rays", "glint_queries", "negligible_queries", "clamped_samples",
            "discarded_samples")
-
 
 def tiles(width, height, size):
     """The (x0, x1, y0, y1) tiles of side ``size`` covering a width × height image, row by row."""
@@ -96,6 +132,67 @@ def _is_done(paths, identity):
         return False
 
 
+def _integer(name, value, low, high=None):
+    """``value`` as an int in [low, high] (``high`` None: no upper limit): a ``TypeError``
+    naming ``name`` if it is not an integer (``bool`` is not), a ``ValueError`` if outside."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an int, not {value!r}")
+    value = int(value)
+    if value < low or (high is not None and value > high):
+        limits = f"at least {low}" if high is None else f"in {low}..={high}"
+        raise ValueError(f"{name} must be {limits}, not {value}")
+    return value
+
+
+def _frame_list(frames):
+    """The frames a run renders, in order, each once.
+
+    ``frames`` is ``(first, last)``, a tuple of two ints (first..last inclusive; a reversed
+    pair is an error), or any other iterable of ints (a list, a range, a generator), read once;
+    a frame listed twice is kept where it first appears. At most ``MAX_FRAMES`` frames (as
+    given), each within ±``MAX_FRAME_NUMBER``.
+    """
+    def frame(name, value):
+        return _integer(name, value, -MAX_FRAME_NUMBER, MAX_FRAME_NUMBER)
+
+    if isinstance(frames, tuple) and len(frames) == 2:
+        first, last = frame("frames[0] (the first frame)", frames[0]), frame(
+            "frames[1] (the last frame)", frames[1])
+        if last < first:
+            raise ValueError(f"frames = ({first}, {last}): the last frame comes before the first "
+                             "(a pair is first..last inclusive; list the frames to go backwards)")
+        if last - first + 1 > MAX_FRAMES:
+            raise ValueError(f"frames = ({first}, {last}): {last - first + 1} frames, more than "
+                             f"the limit of {MAX_FRAMES} per run (as cargo xtask render "
+                             "--frames; split the range)")
+        return list(range(first, last + 1))
+    if isinstance(frames, (str, bytes, bytearray, dict)):
+        raise TypeError(f"frames must be (first, last) or an iterable of ints, not {frames!r}")
+    try:
+        iterator = iter(frames)
+    except TypeError:
+        raise TypeError(f"frames must be (first, last) or an iterable of ints, not {frames!r}"
+                        ) from None
+    given = list(itertools.islice(iterator, MAX_FRAMES + 1))
+    if len(given) > MAX_FRAMES:
+        raise ValueError(f"frames: more than the limit of {MAX_FRAMES} frames per run (as cargo "
+                         "xtask render --frames; split them)")
+    return list(dict.fromkeys(frame(f"frames[{i}]", f) for i, f in enumerate(given)))
+
+
+def _scene_pixel_bounds(scene):
+    """The scene file's ``[render] pixel_bounds``, or None (also when it cannot be read here:
+    Python < 3.11 without ``tomli``)."""
+    if tomllib is None:
+        return None
+    try:
+        with open(scene, "rb") as file:
+            settings = tomllib.load(file).get("render")
+    except (OSError, ValueError):
+        return None  # the probe render reported any problem of the file already
+    return settings.get("pixel_bounds") if isinstance(settings, dict) else None
+
+
 class _Progress:
     """Tiles and frames done, on one line of stderr (a line per frame when not a terminal)."""
 
@@ -141,53 +238,167 @@ def _frame_summary(frame, parts, identity, resolution, workers):
     return summary
 
 
-def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, client=None,
-                  scheduler=None, workers=None, threads=None, overwrite=False, retries=3,
-                  frames_in_flight=None, progress=True, on_tile=None):
-    """Renders frames ``frames`` (an iterable of ints, or ``(a, b)`` for a..b inclusive) of the
-    scene file ``scene`` into folder ``out`` on a Dask cluster and returns the paths written
-    (EXR, PNG and JSON per frame rendered; frames already done are skipped and not listed).
+def _checked_arguments(scene, frames, out, tile, spp, resolution, client, scheduler, workers,
+                       threads, retries, frames_in_flight, worker_timeout, on_tile):
+    """``render_frames``'s arguments checked and normalised; raises before anything starts."""
+    def path(name, value):
+        try:
+            text = os.fspath(value)
+        except TypeError:
+            text = None
+        if not isinstance(text, str):
+            raise TypeError(f"{name} must be a path (str or os.PathLike), not {value!r}")
+        return text
 
-    The cluster is ``client`` (a ``distributed.Client``), else a new client of the scheduler at
-    ``scheduler``, else a ``LocalCluster`` of ``workers`` processes (default 2) that is closed
-    at the end. ``threads`` is each task's render threads (default: the machine's cores shared
-    among a local cluster's workers; all of a remote worker's cores). At most
-    ``frames_in_flight`` frames (default: twice the workers, at least 2) are rendered at once,
-    so the client holds that many frame buffers whatever the length of the animation.
-    ``on_tile(frame, bounds)`` is called on the client as each tile arrives.
-    """
-    from dask.distributed import Client, LocalCluster, as_completed
-
-    scene = os.path.abspath(os.fspath(scene))
+    scene = os.path.abspath(path("scene", scene))
+    out = path("out", out)
+    frames = _frame_list(frames)
+    tile = _integer("tile", tile, 1)
+    spp = None if spp is None else _integer("spp", spp, 1, MAX_SPP)
+    if resolution is not None:
+        if isinstance(resolution, (str, bytes)) or not hasattr(resolution, "__len__") or len(
+                resolution) != 2:
+            raise TypeError(f"resolution must be (width, height), not {resolution!r}")
+        resolution = tuple(_integer(f"resolution[{i}]", v, 1, MAX_SIDE)
+                           for i, v in enumerate(resolution))
+    given = [name for name, value in (("client", client), ("scheduler", scheduler),
+                                      ("workers", workers)) if value is not None]
+    if len(given) > 1:
+        raise ValueError(f"give at most one of client, scheduler and workers, not "
+                         f"{' and '.join(given)}")
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise TypeError(f"scheduler must be an address (str), not {scheduler!r}")
+    workers = None if workers is None else _integer("workers", workers, 1, MAX_LOCAL_WORKERS)
+    threads = None if threads is None else _integer("threads", threads, 1, MAX_THREADS)
+    retries = _integer("retries", retries, 0)
+    if frames_in_flight is not None:
+        frames_in_flight = _integer("frames_in_flight", frames_in_flight, 1)
+    if worker_timeout is not None:
+        if isinstance(worker_timeout, (bool, np.bool_)) or not isinstance(
+                worker_timeout, (int, float, np.integer, np.floating)):
+            raise TypeError(f"worker_timeout must be seconds (a number) or None, not "
+                            f"{worker_timeout!r}")
+        if not (math.isfinite(worker_timeout) and worker_timeout > 0):
+            raise ValueError(f"worker_timeout must be a positive number of seconds or None, "
+                             f"not {worker_timeout}")
+        worker_timeout = float(worker_timeout)
+    if on_tile is not None and not callable(on_tile):
+        raise TypeError(f"on_tile must be callable or None, not {on_tile!r}")
     if not os.path.isfile(scene):
         raise FileNotFoundError(f"scene file {scene!r} does not exist")
-    if isinstance(frames, tuple) and len(frames) == 2:
-        frames = range(frames[0], frames[1] + 1)
-    if len(frames) > MAX_FRAMES:
-        raise ValueError(f"{len(frames)} frames, more than the limit of {MAX_FRAMES} per run "
-                         "(as cargo xtask render --frames; split the range)")
-    frames = list(frames)
+    return (scene, frames, out, tile, spp, resolution, workers, threads, retries,
+            frames_in_flight, worker_timeout)
+
+
+def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, client=None,
+                  scheduler=None, workers=None, threads=None, overwrite=False, retries=3,
+                  frames_in_flight=None, worker_timeout=60.0, progress=True, on_tile=None):
+    """Renders frames of a scene file on a Dask cluster, tile by tile, into a folder.
+
+    Parameters
+    ----------
+    scene : str or os.PathLike
+        The scene file (TOML). It must not set ``[render] pixel_bounds``: the farm renders
+        whole frames.
+    frames : tuple of two ints or iterable of ints
+        ``(first, last)``: frames first..last inclusive (``first <= last``). Any other
+        iterable (a list, a range, a generator) lists the frames, read once; a frame listed
+        twice is rendered once, where it first appears. At most ``MAX_FRAMES`` frames, each
+        within ±2⁵³.
+    out : str or os.PathLike
+        The output folder (created if missing).
+    tile : int
+        Tile side in pixels, at least 1.
+    spp : int, optional
+        Samples per pixel, 1..=65536 (default: the scene's).
+    resolution : (int, int), optional
+        (width, height), each 1..=16384 (default: the scene's).
+    client : distributed.Client, optional
+        The cluster to use, left open.
+    scheduler : str, optional
+        The address of a running Dask scheduler, e.g. ``"tcp://10.0.0.1:8786"``.
+    workers : int, optional
+        A ``LocalCluster`` of this many worker processes (1..=1024), closed at the end. The
+        default when none of ``client``, ``scheduler`` and ``workers`` is given: 2. At most
+        one of the three may be given.
+    threads : int, optional
+        Each task's render threads, 1..=4096 (default: the machine's cores shared among a local
+        cluster's workers; all of a remote worker's cores).
+    overwrite : bool
+        Render frames that are done too.
+    retries : int
+        How often a task that raises is run again, at least 0.
+    frames_in_flight : int, optional
+        The most frames rendered at once, at least 1 (default: twice the workers, at least 2):
+        the client holds that many frame buffers whatever the length of the animation.
+    worker_timeout : float or None
+        Seconds to wait for the cluster's first worker before raising ``TimeoutError``;
+        None waits as long as it takes (a batch queue's workers may start hours later).
+    progress : bool
+        Print progress to stderr.
+    on_tile : callable, optional
+        ``on_tile(frame, bounds)``, called on the client as each tile arrives.
+
+    Returns
+    -------
+    list of str
+        The EXR, PNG and JSON paths of every frame written; frames already done are skipped
+        and not listed.
+
+    Raises
+    ------
+    TypeError, ValueError
+        An argument of the wrong type or out of range, named; a scene with ``pixel_bounds``;
+        a scheduler address that cannot be parsed. Raised before anything starts.
+    FileNotFoundError
+        The scene file does not exist.
+    TimeoutError
+        No worker joined the cluster within ``worker_timeout`` seconds.
+    OSError
+        The scheduler cannot be reached, or an output cannot be written.
+    """
+    from dask.distributed import Client, LocalCluster
+
+    (scene, frames, out, tile, spp, resolution, workers, threads, retries, frames_in_flight,
+     worker_timeout) = _checked_arguments(scene, frames, out, tile, spp, resolution, client,
+                                          scheduler, workers, threads, retries,
+                                          frames_in_flight, worker_timeout, on_tile)
+    if not frames:
+        return []
     os.makedirs(out, exist_ok=True)
-    stem = os.path.splitext(os.path.basename(scene))[0]
-    # The frame size (and a check of the scene and the options) from a one-pixel render here.
-    probe = render(scene, frame=frames[0] if frames else 0, pixel_bounds=(0, 1, 0, 1),
+    # The frame size (and a check of the scene and the options) from a one-pixel render.
+    probe = render(scene, frame=frames[0], pixel_bounds=(0, 1, 0, 1),
                    resolution=resolution, spp=spp, threads=1)["stats"]
+    bounds = _scene_pixel_bounds(scene)
+    if bounds is not None:
+        raise ValueError(
+            f"scene file {scene!r} sets [render] pixel_bounds = {bounds}: the farm renders "
+            "whole frames (remove the setting, or render the crop with cargo xtask render)")
     width, height = probe["resolution"]
-    samples = probe["spp"]
     identity = {"sources_sha256": sources_sha256(probe["sources"]),
-                "resolution": [width, height], "spp": samples, "glint": __version__}
+                "resolution": [width, height], "spp": probe["spp"], "glint": __version__}
+    stem = os.path.splitext(os.path.basename(scene))[0]
     todo = [f for f in frames if overwrite or not _is_done(_outputs(out, stem, f), identity)]
-    for f in frames:
-        if f not in todo and progress:
-            print(f"frame {f}: done already ({_outputs(out, stem, f)[0]}), skipped",
-                  file=sys.stderr)
+    if progress:
+        pending = set(todo)
+        for f in frames:
+            if f not in pending:
+                print(f"frame {f}: done already ({_outputs(out, stem, f)[0]}), skipped",
+                      file=sys.stderr)
     if not todo:
         return []
     cluster = None
     own_client = client is None
     if own_client:
         if scheduler is not None:
-            client = Client(scheduler)
+            try:
+                client = Client(scheduler)
+            except ValueError as error:
+                raise ValueError(f"scheduler {scheduler!r} is not a Dask scheduler address "
+                                 f"(tcp://HOST:PORT): {error}") from error
+            except OSError as error:
+                raise OSError(f"cannot reach the Dask scheduler at {scheduler!r}: {error}"
+                              ) from error
         else:
             count = 2 if workers is None else workers
             if threads is None:
@@ -196,29 +407,50 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
                                    dashboard_address=None)
             client = Client(cluster)
     try:
-        boxes = tiles(width, height, tile)
-        worker_count = len(client.scheduler_info().get("workers", {}))
-        # Frames in flight at once: enough to keep every worker busy across a frame's last
-        # tiles, few enough that the merge buffers (one image per frame) stay bounded.
-        window = max(2, 2 * worker_count) if frames_in_flight is None else frames_in_flight
-        if window < 1:
-            raise ValueError(f"frames_in_flight must be at least 1, not {window}")
-        waiting = list(todo)
-        futures = {}
-        pending = as_completed()
+        return _render_on(client, scene, stem, todo, out, (width, height), identity, tile,
+                          threads, retries, frames_in_flight, worker_timeout, progress, on_tile)
+    finally:
+        if own_client:
+            client.close()
+        if cluster is not None:
+            cluster.close()
 
-        def submit_next_frame():
-            f = waiting.pop(0)
-            for bounds in boxes:
-                key = f"glint-tile-{stem}-{f}-{bounds[0]}-{bounds[2]}-{uuid.uuid4().hex}"
-                future = client.submit(render_tile, scene, f, bounds, (width, height), samples,
-                                       threads, retries=retries, pure=False, key=key)
-                futures[future] = f
-                pending.add(future)
-            images[f] = np.zeros((height, width, 3), dtype=np.float32)
-            parts[f] = []
 
-        images, parts = {}, {}
+def _render_on(client, scene, stem, todo, out, resolution, identity, tile, threads, retries,
+               frames_in_flight, worker_timeout, progress, on_tile):
+    """Renders frames ``todo`` on ``client``'s cluster and writes them (``render_frames``)."""
+    from dask.distributed import as_completed
+
+    try:
+        client.wait_for_workers(1, timeout=worker_timeout)
+    except (TimeoutError, asyncio.TimeoutError):
+        raise TimeoutError(
+            f"no Dask worker joined the scheduler at {client.scheduler.address} within "
+            f"{worker_timeout:g} s (worker_timeout): start workers, or wait longer") from None
+    width, height = resolution
+    samples = identity["spp"]
+    boxes = tiles(width, height, tile)
+    worker_count = len(client.scheduler_info()["workers"])
+    # Frames in flight at once: enough to keep every worker busy across a frame's last tiles,
+    # few enough that the merge buffers (one image per frame) stay bounded.
+    window = max(2, 2 * worker_count) if frames_in_flight is None else frames_in_flight
+    waiting = collections.deque(todo)
+    futures = {}
+    pending = as_completed()
+    images, parts = {}, {}
+
+    def submit_next_frame():
+        f = waiting.popleft()
+        for bounds in boxes:
+            key = f"glint-tile-{stem}-{f}-{bounds[0]}-{bounds[2]}-{uuid.uuid4().hex}"
+            future = client.submit(render_tile, scene, f, bounds, resolution, samples, threads,
+                                   retries=retries, pure=False, key=key)
+            futures[future] = f
+            pending.add(future)
+        images[f] = np.zeros((height, width, 3), dtype=np.float32)
+        parts[f] = []
+
+    try:
         while waiting and len(images) < window:
             submit_next_frame()
         meter = _Progress(len(boxes) * len(todo), len(todo), progress)
@@ -227,21 +459,22 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
             f = futures.pop(future)
             (x0, x1, y0, y1), image, stats = future.result()
             images[f][y0:y1, x0:x1] = image
-            parts[f].append(stats)
+            parts[f].append(((y0, x0), stats))
             meter.tile()
             if on_tile is not None:
                 on_tile(f, (x0, x1, y0, y1))
             if len(parts[f]) < len(boxes):
                 continue
             paths = _outputs(out, stem, f)
-            summary = _frame_summary(f, parts.pop(f), identity, (width, height), worker_count)
+            frame_parts = [stats for _, stats in sorted(parts.pop(f), key=lambda p: p[0])]
             frame_image = images.pop(f)
+            summary = _frame_summary(f, frame_parts, identity, resolution, worker_count)
             _atomic(paths[0], lambda p, im=frame_image: write_exr(p, im))
             _atomic(paths[1], lambda p, im=frame_image, s=summary: write_png(
                 p, im, s.get("exposure", 0.0), s.get("bloom")))
 
             def write_json(p, s=summary):
-                with open(p, "w") as file:
+                with open(p, "w", encoding="utf-8") as file:
                     json.dump(s, file, indent=2)
                     file.write("\n")
 
@@ -252,10 +485,8 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
                 submit_next_frame()
         return written
     finally:
-        if own_client:
-            client.close()
-        if cluster is not None:
-            cluster.close()
+        if futures:
+            client.cancel(list(futures))
 
 
 def _frames(text):
@@ -284,9 +515,11 @@ def main(argv=None):
     parser.add_argument("scene", help="the scene file (TOML, scenes/README.md)")
     parser.add_argument("--frames", type=_frames, default=(0, 0), metavar="A..B",
                         help="camera frames A to B inclusive (default 0..0)")
-    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--out", required=True,
+                        help="output folder (one run at a time writes into it)")
     parser.add_argument("--tile", type=int, default=64, help="tile side in pixels (64)")
-    parser.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
+    parser.add_argument("--spp", type=int,
+                        help=f"samples per pixel, 1..={MAX_SPP} (default: the scene's)")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help="image size (default: the scene's)")
     where = parser.add_mutually_exclusive_group()
@@ -297,6 +530,8 @@ def main(argv=None):
     parser.add_argument("--threads", type=int,
                         help="render threads per task (default: cores / local workers)")
     parser.add_argument("--retries", type=int, default=3, help="retries of a failed task (3)")
+    parser.add_argument("--worker-timeout", type=float, default=60.0, metavar="SECONDS",
+                        help="how long to wait for the cluster's first worker (60)")
     parser.add_argument("--overwrite", action="store_true",
                         help="render frames whose outputs exist too")
     parser.add_argument("--quiet", action="store_true", help="no progress")
@@ -306,12 +541,12 @@ def main(argv=None):
                                 resolution=args.resolution, scheduler=args.scheduler,
                                 workers=args.workers, threads=args.threads,
                                 overwrite=args.overwrite, retries=args.retries,
-                                progress=not args.quiet)
+                                worker_timeout=args.worker_timeout, progress=not args.quiet)
     except KeyboardInterrupt:
         print("\ninterrupted: frames written so far are kept; run again to render the rest",
               file=sys.stderr)
         return 130
-    except (ValueError, OSError) as error:
+    except (ValueError, TypeError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     print(f"{len(written) // 3} frame(s) written to {args.out}", file=sys.stderr)
