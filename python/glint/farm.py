@@ -10,17 +10,25 @@ on the scene, the settings and the pixel alone), so the frames merged here equal
 the ones ``cargo xtask render --frames A..B`` writes on one machine. The farm renders whole
 frames: a scene file that sets ``[render] pixel_bounds`` is refused.
 
-Every argument is checked before anything starts (no folder, no cluster), with a
+Every argument is checked before anything starts (no folder, no lock, no cluster), with a
 ``ValueError`` or ``TypeError`` naming it. ``frames`` is ``(first, last)`` (a tuple of two
 ints, inclusive) or any iterable of ints, read once; a frame given twice is rendered once.
 
+One run at a time writes into a folder: a run locks ``DIR/.glint-farm.lock`` (a POSIX file
+lock, released when the run ends or its process dies), and a second run raises
+``FolderInUseError`` naming the lock file and the holder's pid. On starting, a run removes the
+temporary files (``*.partial-PID.*``) that runs whose process is gone left behind.
+
 The client writes ``DIR/<scene>_<frame>.exr``, ``.png`` and ``.json`` (the frame's summary)
-atomically: each to a temporary file, then renamed, the JSON last. A frame whose three outputs
-exist and whose JSON records the same scene (SHA-256 of the scene file and its assets),
-resolution, samples and glint version is skipped, so an interrupted run continues where it
+atomically: each to a temporary file, then renamed, the JSON last, recording the size and
+SHA-256 of the EXR and PNG. A frame is skipped as done when its JSON records the same scene
+(SHA-256 of the scene file and its assets), resolution, samples and glint version, and the
+EXR and PNG beside it are the files it records; so an interrupted run continues where it
 stopped; ``--overwrite`` renders it again.
 
-Tasks that raise are retried (``retries``);
+Every task hashes the scene file and its assets before and after rendering its tile; a tile
+rendered from files other than the ones the run started with stops the run with
+``SceneChangedError`` before its frame is written. Tasks that raise are retried (``retries``);
 tasks on a worker that dies are run again on another (Dask's own rescheduling). Workers need
 the ``glint`` package (install the same wheel everywhere) and must see the scene file and its
 assets at the same path (a shared file system). See ``docs/farm.md`` in the repository for
@@ -32,11 +40,14 @@ From Python: ``glint.farm.render_frames(scene, frames, out, ...)`` returns the p
 import argparse
 import asyncio
 import collections
+import errno
 import hashlib
 import itertools
 import json
 import math
 import os
+import re
+import socket
 import sys
 import time
 import uuid
@@ -45,6 +56,11 @@ import numpy as np
 
 from . import __version__
 from ._render import render, write_exr, write_png
+
+try:
+    import fcntl
+except ImportError:  # not POSIX (Windows): the lock falls back to a file with the holder's pid
+    fcntl = None
 
 try:
     import tomllib
@@ -73,9 +89,24 @@ MAX_THREADS = 4096
 #: The most worker processes of a local cluster (one machine).
 MAX_LOCAL_WORKERS = 1024
 
+#: The lock file a run holds in its output folder.
+LOCK_NAME = ".glint-farm.lock"
+
 #: The summary fields summed over a frame's tiles.
 _SUMMED = ("seconds", "rays", "glint_queries", "negligible_queries", "clamped_samples",
            "discarded_samples")
+
+#: A temporary output of a run: ``<name>.partial-<pid>.<extension>`` (``_atomic``).
+_PARTIAL = re.compile(r"\.partial-(\d+)\.(exr|png|json)$")
+
+
+class FolderInUseError(OSError):
+    """Another farm run holds the output folder's lock: two runs never write one folder."""
+
+
+class SceneChangedError(RuntimeError):
+    """A tile was rendered from scene files other than the ones its run started with."""
+
 
 def tiles(width, height, size):
     """The (x0, x1, y0, y1) tiles of side ``size`` covering a width × height image, row by row."""
@@ -85,11 +116,31 @@ def tiles(width, height, size):
             for y0 in range(0, height, size) for x0 in range(0, width, size)]
 
 
-def render_tile(scene, frame, bounds, resolution, spp, threads):
-    """One task: the tile ``bounds`` of ``frame``, as (bounds, float32 image, stats)."""
+def render_tile(scene, frame, bounds, resolution, spp, threads, sources=None):
+    """One task: the tile ``bounds`` of ``frame``.
+
+    Returns (bounds, float32 image, stats, before, after): ``before`` is the ``sources_sha256``
+    of ``sources`` (the files the client's run started with) taken before rendering, ``after``
+    that of the files the render read (``stats["sources"]``) taken after it. Both equal the
+    run's only if the files were the same throughout, unless they changed and changed back
+    in between.
+    """
+    before = None if sources is None else sources_sha256(sources)
     result = render(scene, frame=frame, pixel_bounds=bounds, resolution=resolution, spp=spp,
                     threads=threads)
-    return bounds, result["image"], result["stats"]
+    after = sources_sha256(result["stats"]["sources"])
+    return bounds, result["image"], result["stats"], before, after
+
+
+def _file_record(path):
+    """The size and SHA-256 of a file, as a frame's JSON records its EXR and PNG."""
+    digest = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+            size += len(block)
+    return {"bytes": size, "sha256": digest.hexdigest()}
 
 
 def sources_sha256(sources):
@@ -105,12 +156,15 @@ def sources_sha256(sources):
 
 
 def _atomic(path, write):
-    """Runs ``write(temporary)`` and renames the temporary file to ``path``."""
+    """Runs ``write(temporary)``, renames the temporary file to ``path`` and returns its size
+    and SHA-256 (``_file_record``)."""
     root, extension = os.path.splitext(path)
     temporary = f"{root}.partial-{os.getpid()}{extension}"
     try:
         write(temporary)
+        record = _file_record(temporary)
         os.replace(temporary, path)
+        return record
     finally:
         if os.path.exists(temporary):
             os.remove(temporary)
@@ -122,14 +176,125 @@ def _outputs(out, stem, frame):
 
 
 def _is_done(paths, identity):
-    """Whether a frame's outputs exist and its summary records ``identity``."""
-    if not all(os.path.isfile(p) for p in paths):
-        return False
+    """Whether a frame's outputs are complete: its JSON is an object whose ``farm`` records
+    ``identity`` and the size and SHA-256 of the EXR and PNG, and those files match them."""
     try:
-        with open(paths[2]) as file:
-            return json.load(file).get("farm", {}).get("identity") == identity
-    except (OSError, ValueError):
+        with open(paths[2], encoding="utf-8") as file:
+            summary = json.load(file)
+    except (OSError, ValueError, RecursionError):
         return False
+    farm = summary.get("farm") if isinstance(summary, dict) else None
+    if not isinstance(farm, dict) or farm.get("identity") != identity:
+        return False
+    outputs = farm.get("outputs")
+    if not isinstance(outputs, dict):
+        return False
+    records = [(path, outputs.get(key)) for path, key in zip(paths, ("exr", "png"))]
+    try:
+        # Sizes first: a truncated file is told apart without reading anything.
+        if not all(isinstance(r, dict) and os.path.getsize(p) == r.get("bytes")
+                   for p, r in records):
+            return False
+        return all(_file_record(p)["sha256"] == r.get("sha256") for p, r in records)
+    except OSError:
+        return False
+
+
+def _pid_alive(pid):
+    """Whether a process ``pid`` exists on this machine."""
+    import psutil  # a dependency of distributed
+    return psutil.pid_exists(pid)
+
+
+class _FolderLock:
+    """The output folder's lock, held for a whole run (a context manager).
+
+    Where the platform has POSIX file locks (``fcntl.flock``), the lock is ``flock`` on
+    ``LOCK_NAME``: the operating system releases it when the holder exits or is killed, so a
+    lock file left by a dead run is simply taken; the file records the holder's pid and host
+    for the error a second run raises. Elsewhere the file is created exclusively, and one
+    whose holder on this host is gone is taken over.
+    """
+
+    def __init__(self, folder):
+        self.path = os.path.join(folder, LOCK_NAME)
+        self.descriptor = None
+
+    def _holder(self):
+        try:
+            with open(self.path, encoding="utf-8", errors="replace") as file:
+                pid, _, host = file.read().strip().partition(" ")
+            return int(pid), host
+        except (OSError, ValueError):
+            return None, ""
+
+    def _busy(self):
+        pid, host = self._holder()
+        holder = "an unknown process" if pid is None else f"pid {pid}" + (
+            f" on {host}" if host else "")
+        return FolderInUseError(
+            f"another farm run ({holder}) is writing into {os.path.dirname(self.path)}: it holds "
+            f"the lock {self.path}; wait for it to end or use another output folder")
+
+    def _lock_posix(self):
+        while True:
+            descriptor = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as error:
+                os.close(descriptor)
+                if error.errno in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EACCES):
+                    raise self._busy() from None
+                raise OSError(f"cannot lock {self.path}: {error}") from error
+            # A run that ends removes the file (holding the lock): locked, it must still be
+            # the file at the path, or another run may lock a new one there.
+            try:
+                current = os.stat(self.path).st_ino == os.fstat(descriptor).st_ino
+            except FileNotFoundError:
+                current = False
+            if current:
+                return descriptor
+            os.close(descriptor)
+
+    def _lock_exclusive(self):
+        while True:
+            try:
+                return os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                pid, host = self._holder()
+                if pid is None or host != socket.gethostname() or _pid_alive(pid):
+                    raise self._busy() from None
+                os.remove(self.path)  # its holder is gone: take it over
+
+    def __enter__(self):
+        descriptor = self._lock_posix() if fcntl is not None else self._lock_exclusive()
+        os.ftruncate(descriptor, 0)
+        os.write(descriptor, f"{os.getpid()} {socket.gethostname()}\n".encode())
+        self.descriptor = descriptor
+        return self
+
+    def __exit__(self, *exception):
+        try:
+            os.remove(self.path)
+        except OSError:
+            pass
+        os.close(self.descriptor)
+        self.descriptor = None
+
+
+def _remove_dead_partials(out):
+    """Removes the temporary outputs (``*.partial-PID.*``) that runs no longer alive left in
+    ``out``; returns how many."""
+    removed = 0
+    for name in os.listdir(out):
+        match = _PARTIAL.search(name)
+        if match and int(match[1]) != os.getpid() and not _pid_alive(int(match[1])):
+            try:
+                os.remove(os.path.join(out, name))
+                removed += 1
+            except FileNotFoundError:
+                pass
+    return removed
 
 
 def _integer(name, value, low, high=None):
@@ -224,8 +389,10 @@ class _Progress:
         print(("\r" if self.terminal else "") + line, end=end, file=sys.stderr, flush=True)
 
 
-def _frame_summary(frame, parts, identity, resolution, workers):
-    """One frame's summary from its tiles' stats: the first tile's settings, sums of counts."""
+def _frame_summary(frame, parts, identity, resolution, workers, outputs):
+    """One frame's summary from its tiles' stats (``parts``, in frame order): the first tile's
+    settings, sums of counts, and the farm's record (``identity``, the EXR's and PNG's sizes
+    and SHA-256 in ``outputs``)."""
     first = parts[0]
     summary = {key: first[key] for key in (
         "scene", "sources", "frame", "resolution", "spp", "smooth", "glint_footprints", "exposure",
@@ -234,7 +401,7 @@ def _frame_summary(frame, parts, identity, resolution, workers):
     for key in _SUMMED:
         summary[key] = sum(p[key] for p in parts)
     summary["tiles"] = len(parts)
-    summary["farm"] = {"identity": identity, "workers": workers}
+    summary["farm"] = {"identity": identity, "workers": workers, "outputs": outputs}
     return summary
 
 
@@ -306,7 +473,7 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
         twice is rendered once, where it first appears. At most ``MAX_FRAMES`` frames, each
         within ±2⁵³.
     out : str or os.PathLike
-        The output folder (created if missing).
+        The output folder (created if missing); one run at a time writes into it.
     tile : int
         Tile side in pixels, at least 1.
     spp : int, optional
@@ -352,10 +519,15 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
         a scheduler address that cannot be parsed. Raised before anything starts.
     FileNotFoundError
         The scene file does not exist.
+    FolderInUseError
+        Another run holds ``out``'s lock.
     TimeoutError
         No worker joined the cluster within ``worker_timeout`` seconds.
     OSError
         The scheduler cannot be reached, or an output cannot be written.
+    SceneChangedError
+        The scene file or an asset changed during the run; the frames written so far are
+        complete, and a new run renders the rest from the files as they are then.
     """
     from dask.distributed import Client, LocalCluster
 
@@ -366,58 +538,64 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
     if not frames:
         return []
     os.makedirs(out, exist_ok=True)
-    # The frame size (and a check of the scene and the options) from a one-pixel render.
-    probe = render(scene, frame=frames[0], pixel_bounds=(0, 1, 0, 1),
-                   resolution=resolution, spp=spp, threads=1)["stats"]
-    bounds = _scene_pixel_bounds(scene)
-    if bounds is not None:
-        raise ValueError(
-            f"scene file {scene!r} sets [render] pixel_bounds = {bounds}: the farm renders "
-            "whole frames (remove the setting, or render the crop with cargo xtask render)")
-    width, height = probe["resolution"]
-    identity = {"sources_sha256": sources_sha256(probe["sources"]),
-                "resolution": [width, height], "spp": probe["spp"], "glint": __version__}
-    stem = os.path.splitext(os.path.basename(scene))[0]
-    todo = [f for f in frames if overwrite or not _is_done(_outputs(out, stem, f), identity)]
-    if progress:
-        pending = set(todo)
-        for f in frames:
-            if f not in pending:
-                print(f"frame {f}: done already ({_outputs(out, stem, f)[0]}), skipped",
-                      file=sys.stderr)
-    if not todo:
-        return []
-    cluster = None
-    own_client = client is None
-    if own_client:
-        if scheduler is not None:
-            try:
-                client = Client(scheduler)
-            except ValueError as error:
-                raise ValueError(f"scheduler {scheduler!r} is not a Dask scheduler address "
-                                 f"(tcp://HOST:PORT): {error}") from error
-            except OSError as error:
-                raise OSError(f"cannot reach the Dask scheduler at {scheduler!r}: {error}"
-                              ) from error
-        else:
-            count = 2 if workers is None else workers
-            if threads is None:
-                threads = max(1, (os.cpu_count() or 1) // count)
-            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
-            client = Client(cluster)
-    try:
-        return _render_on(client, scene, stem, todo, out, (width, height), identity, tile,
-                          threads, retries, frames_in_flight, worker_timeout, progress, on_tile)
-    finally:
+    with _FolderLock(out):
+        removed = _remove_dead_partials(out)
+        if removed and progress:
+            print(f"removed {removed} temporary file(s) of runs that ended without finishing",
+                  file=sys.stderr)
+        # The frame size (and a check of the scene and the options) from a one-pixel render.
+        probe = render(scene, frame=frames[0], pixel_bounds=(0, 1, 0, 1),
+                       resolution=resolution, spp=spp, threads=1)["stats"]
+        bounds = _scene_pixel_bounds(scene)
+        if bounds is not None:
+            raise ValueError(
+                f"scene file {scene!r} sets [render] pixel_bounds = {bounds}: the farm renders "
+                "whole frames (remove the setting, or render the crop with cargo xtask render)")
+        width, height = probe["resolution"]
+        identity = {"sources_sha256": sources_sha256(probe["sources"]),
+                    "resolution": [width, height], "spp": probe["spp"], "glint": __version__}
+        stem = os.path.splitext(os.path.basename(scene))[0]
+        todo = [f for f in frames if overwrite or not _is_done(_outputs(out, stem, f), identity)]
+        if progress:
+            pending = set(todo)
+            for f in frames:
+                if f not in pending:
+                    print(f"frame {f}: done already ({_outputs(out, stem, f)[0]}), skipped",
+                          file=sys.stderr)
+        if not todo:
+            return []
+        cluster = None
+        own_client = client is None
         if own_client:
-            client.close()
-        if cluster is not None:
-            cluster.close()
+            if scheduler is not None:
+                try:
+                    client = Client(scheduler)
+                except ValueError as error:
+                    raise ValueError(f"scheduler {scheduler!r} is not a Dask scheduler address "
+                                     f"(tcp://HOST:PORT): {error}") from error
+                except OSError as error:
+                    raise OSError(f"cannot reach the Dask scheduler at {scheduler!r}: {error}"
+                                  ) from error
+            else:
+                count = 2 if workers is None else workers
+                if threads is None:
+                    threads = max(1, (os.cpu_count() or 1) // count)
+                cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
+                client = Client(cluster)
+        try:
+            return _render_on(client, scene, stem, todo, out, (width, height), identity,
+                              probe["sources"], tile, threads, retries, frames_in_flight,
+                              worker_timeout, progress, on_tile)
+        finally:
+            if own_client:
+                client.close()
+            if cluster is not None:
+                cluster.close()
 
 
-def _render_on(client, scene, stem, todo, out, resolution, identity, tile, threads, retries,
-               frames_in_flight, worker_timeout, progress, on_tile):
+def _render_on(client, scene, stem, todo, out, resolution, identity, sources, tile, threads,
+               retries, frames_in_flight, worker_timeout, progress, on_tile):
     """Renders frames ``todo`` on ``client``'s cluster and writes them (``render_frames``)."""
     from dask.distributed import as_completed
 
@@ -444,7 +622,7 @@ def _render_on(client, scene, stem, todo, out, resolution, identity, tile, threa
         for bounds in boxes:
             key = f"glint-tile-{stem}-{f}-{bounds[0]}-{bounds[2]}-{uuid.uuid4().hex}"
             future = client.submit(render_tile, scene, f, bounds, resolution, samples, threads,
-                                   retries=retries, pure=False, key=key)
+                                   sources, retries=retries, pure=False, key=key)
             futures[future] = f
             pending.add(future)
         images[f] = np.zeros((height, width, 3), dtype=np.float32)
@@ -457,7 +635,14 @@ def _render_on(client, scene, stem, todo, out, resolution, identity, tile, threa
         written = []
         for future in pending:
             f = futures.pop(future)
-            (x0, x1, y0, y1), image, stats = future.result()
+            (x0, x1, y0, y1), image, stats, before, after = future.result()
+            if not (before == after == identity["sources_sha256"]) or stats.get(
+                    "resolution") != [width, height] or stats.get("spp") != samples:
+                raise SceneChangedError(
+                    f"the scene changed during the run: tile {(x0, x1, y0, y1)} of frame {f} was "
+                    f"rendered from files whose SHA-256 is {after} (before the render: {before}), "
+                    f"not the run's {identity['sources_sha256']} ({', '.join(sources)}); frames "
+                    "written so far are complete, run again to render the rest")
             images[f][y0:y1, x0:x1] = image
             parts[f].append(((y0, x0), stats))
             meter.tile()
@@ -468,10 +653,11 @@ def _render_on(client, scene, stem, todo, out, resolution, identity, tile, threa
             paths = _outputs(out, stem, f)
             frame_parts = [stats for _, stats in sorted(parts.pop(f), key=lambda p: p[0])]
             frame_image = images.pop(f)
-            summary = _frame_summary(f, frame_parts, identity, resolution, worker_count)
-            _atomic(paths[0], lambda p, im=frame_image: write_exr(p, im))
-            _atomic(paths[1], lambda p, im=frame_image, s=summary: write_png(
-                p, im, s.get("exposure", 0.0), s.get("bloom")))
+            outputs = {
+                "exr": _atomic(paths[0], lambda p, im=frame_image: write_exr(p, im)),
+                "png": _atomic(paths[1], lambda p, im=frame_image, s=frame_parts[0]: write_png(
+                    p, im, s.get("exposure", 0.0), s.get("bloom")))}
+            summary = _frame_summary(f, frame_parts, identity, resolution, worker_count, outputs)
 
             def write_json(p, s=summary):
                 with open(p, "w", encoding="utf-8") as file:
@@ -546,7 +732,7 @@ def main(argv=None):
         print("\ninterrupted: frames written so far are kept; run again to render the rest",
               file=sys.stderr)
         return 130
-    except (ValueError, TypeError, OSError) as error:
+    except (ValueError, TypeError, OSError, SceneChangedError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     print(f"{len(written) // 3} frame(s) written to {args.out}", file=sys.stderr)

@@ -1,6 +1,9 @@
 """glint.farm on a real Dask LocalCluster of two worker processes: frames merged from tiles
 equal `cargo xtask render --frames`'s byte for byte, a worker killed in the middle of a run
-changes nothing, and a run interrupted and started again renders only what is missing."""
+changes nothing, a run interrupted and started again renders only what is missing, frames
+whose outputs are damaged or another run's are rendered again, and a scene edited during a run
+stops it without recording a frame mixed from two versions. (Checks without a cluster are in
+test_farm_arguments.py and test_farm_outputs.py.)"""
 
 import json
 import os
@@ -12,6 +15,7 @@ import time
 
 import pytest
 
+import glint
 from test_render import SCENE, _same_files, _scene, _xtask_render
 
 distributed = pytest.importorskip("distributed")
@@ -120,3 +124,42 @@ def test_an_interrupted_run_resumes_with_what_is_missing(tmp_path):
         assert (out / name).stat().st_mtime_ns == stamps[name], f"{name} was rendered again"
         assert f"frame {int(name[6:10])}: done already" in second.stderr
     _assert_frames_equal(out, _reference(tmp_path, scene, [0, 1, 2, 3]), "floor", [0, 1, 2, 3])
+
+
+def test_frames_listed_twice_and_damaged_outputs(tmp_path, cluster):
+    from glint.farm import render_frames
+    scene = _scene(tmp_path)
+    out = tmp_path / "farm"
+    written = render_frames(scene, [1, 0, 1], out, tile=24, client=cluster, threads=1,
+                            progress=False)
+    assert [os.path.basename(p) for p in written[::3]] == ["floor_0001.exr", "floor_0000.exr"]
+    cli = _reference(tmp_path, scene, [0, 1])
+    _assert_frames_equal(out, cli, "floor", [0, 1])
+    # A truncated EXR, and another run's EXR (1 spp) beside this run's PNG and JSON: neither
+    # frame is done, both render again.
+    (out / "floor_0000.exr").write_bytes((out / "floor_0000.exr").read_bytes()[:100])
+    glint.write_exr(out / "floor_0001.exr", glint.render(scene, frame=1, spp=1)["image"])
+    again = render_frames(scene, (0, 1), out, tile=24, client=cluster, threads=1,
+                          progress=False)
+    assert len(again) == 6
+    _assert_frames_equal(out, cli, "floor", [0, 1])
+
+
+def test_a_scene_edited_during_a_run_records_no_mixed_frame(tmp_path, cluster):
+    from glint.farm import SceneChangedError, render_frames
+    scene = _scene(tmp_path)
+    out = tmp_path / "farm"
+    original = scene.read_text()
+
+    def edit(frame, bounds):
+        scene.write_text(original.replace("power = 20", "power = 30"))
+
+    # One frame in flight: frame 1's tiles are all submitted after the edit.
+    with pytest.raises(SceneChangedError, match="the scene changed during the run"):
+        render_frames(scene, (0, 2), out, tile=24, client=cluster, threads=1,
+                      frames_in_flight=1, progress=False, on_tile=edit)
+    assert not (out / "floor_0001.json").exists() and not (out / "floor_0002.json").exists()
+    # The edit reverted: any frame recorded done is the scene's, and the rest render now.
+    scene.write_text(original)
+    render_frames(scene, (0, 2), out, tile=24, client=cluster, threads=1, progress=False)
+    _assert_frames_equal(out, _reference(tmp_path, scene, [0, 1, 2]), "floor", [0, 1, 2])

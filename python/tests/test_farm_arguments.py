@@ -1,11 +1,12 @@
 """glint.farm's arguments and frame specifications, without a cluster: every bad argument is
-refused with a ValueError or TypeError naming it before any folder or cluster exists
+refused with a ValueError or TypeError naming it before any folder, lock or cluster exists
 (property tests with Hypothesis), every good one reaches the cluster, and the frames a run
 renders are the ones specified, in order, each once."""
 
 import itertools
 import os
 import re
+import socket
 
 import numpy as np
 import pytest
@@ -191,6 +192,7 @@ def test_good_arguments_reach_the_cluster(scene, tmp_path, no_cluster, fake_prob
                                           frames):
     with pytest.raises(ClusterStarted):
         farm.render_frames(scene, frames, tmp_path / "out", progress=False, **kwargs)
+    assert not (tmp_path / "out" / farm.LOCK_NAME).exists(), "the lock is released"
 
 
 def test_no_frames_is_nothing_to_do(scene, tmp_path, no_cluster):
@@ -239,3 +241,9 @@ def test_a_scene_with_pixel_bounds_is_refused(tmp_path, no_cluster):
     with pytest.raises(ValueError, match=re.escape("pixel_bounds = [0, 8, 0, 8]") + ".*whole"):
         farm.render_frames(scene, (0, 0), tmp_path / "out", progress=False)
 
+
+def test_lock_holder_is_read_back(tmp_path):
+    lock = farm._FolderLock(str(tmp_path))
+    with lock:
+        assert lock._holder() == (os.getpid(), socket.gethostname())
+    assert not (tmp_path / farm.LOCK_NAME).exists()
