@@ -93,8 +93,7 @@ MAX_LOCAL_WORKERS = 1024
 LOCK_NAME = ".glint-farm.lock"
 
 #: The summary fields summed over a frame's tiles.
-_SUMMED = ("seconds", "rays", "glint_queries", "negligible_queries", "clamped_samples",
-           "discarded_samples")
+_SUMMED = ("seconds", "rays", "clamped_samples", "discarded_samples")
 
 #: A temporary output of a run: ``<name>.partial-<pid>.<extension>`` (``_atomic``).
 _PARTIAL = re.compile(r"\.partial-(\d+)\.(exr|png|json)$")
@@ -389,10 +388,58 @@ class _Progress:
         print(("\r" if self.terminal else "") + line, end=end, file=sys.stderr, flush=True)
 
 
+def _glint_sums(stats):
+    """The glint counters behind a summary's per-query means: queries, negligible queries and
+    their bound, nodes visited, nodes overlapping and particles found (summed over queries)."""
+    queries, negligible = stats["glint_queries"], stats["negligible_queries"]
+    traversed = max(1, queries - negligible)
+    return [queries, negligible, stats["negligible_bound"],
+            round(stats["nodes_per_query"] * traversed),
+            round(stats["overlapping_nodes_per_query"] * traversed),
+            stats["particles_per_query"] * max(1, queries)]
+
+
+def _glint_means(sums):
+    """A summary's glint statistics from summed counters (``_glint_sums``), as the tracer
+    computes them: nodes per traversed query, particles per query."""
+    queries, negligible, bound, nodes, overlapping, particles = sums
+    traversed = max(1, queries - negligible)
+    return {"glint_queries": queries, "negligible_queries": negligible,
+            "negligible_bound": bound, "nodes_per_query": nodes / traversed,
+            "overlapping_nodes_per_query": overlapping / traversed,
+            "particles_per_query": particles / max(1, queries)}
+
+
+def _merged_glint(parts):
+    """The glint statistics of a frame from its tiles' (``parts``, in frame order): totals
+    and per material, with the per-query means of the summed counters. The node counts are
+    exact, so nodes per query equal the whole frame's; particles per query agree to rounding."""
+    def total(sums):
+        return [sum(column) for column in zip(*sums)]
+
+    merged = _glint_means(total(_glint_sums(p) for p in parts))
+    if not all("materials" in p for p in parts):
+        return merged
+    # Materials in the tiles' order: each name after the one before it in the tile that has it.
+    names, by_name = [], collections.defaultdict(list)
+    for part in parts:
+        place = 0
+        for material in part["materials"]:
+            if material["name"] in by_name:
+                place = names.index(material["name"]) + 1
+            else:
+                names.insert(place, material["name"])
+                place += 1
+            by_name[material["name"]].append(_glint_sums(material))
+    merged["materials"] = [{"name": name, **_glint_means(total(by_name[name]))}
+                           for name in names]
+    return merged
+
+
 def _frame_summary(frame, parts, identity, resolution, workers, outputs):
     """One frame's summary from its tiles' stats (``parts``, in frame order): the first tile's
-    settings, sums of counts, and the farm's record (``identity``, the EXR's and PNG's sizes
-    and SHA-256 in ``outputs``)."""
+    settings, sums of counts, merged glint statistics, and the farm's record (``identity``,
+    the EXR's and PNG's sizes and SHA-256 in ``outputs``)."""
     first = parts[0]
     summary = {key: first[key] for key in (
         "scene", "sources", "frame", "resolution", "spp", "smooth", "glint_footprints", "exposure",
@@ -400,6 +447,7 @@ def _frame_summary(frame, parts, identity, resolution, workers, outputs):
     summary["pixel_bounds"] = [0, resolution[0], 0, resolution[1]]
     for key in _SUMMED:
         summary[key] = sum(p[key] for p in parts)
+    summary.update(_merged_glint(parts))
     summary["tiles"] = len(parts)
     summary["farm"] = {"identity": identity, "workers": workers, "outputs": outputs}
     return summary

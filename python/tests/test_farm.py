@@ -135,6 +135,17 @@ def test_frames_listed_twice_and_damaged_outputs(tmp_path, cluster):
     assert [os.path.basename(p) for p in written[::3]] == ["floor_0001.exr", "floor_0000.exr"]
     cli = _reference(tmp_path, scene, [0, 1])
     _assert_frames_equal(out, cli, "floor", [0, 1])
+    # The tiles' statistics merged per material: the whole frame's (node counts are exact).
+    for f in (0, 1):
+        farm = json.loads((out / f"floor_{f:04d}.json").read_text())
+        whole = json.loads((cli / f"floor_{f:04d}.json").read_text())
+        assert [m["name"] for m in farm["materials"]] == [m["name"] for m in whole["materials"]]
+        for mine, theirs in zip(farm["materials"] + [farm], whole["materials"] + [whole]):
+            for key in ("glint_queries", "negligible_queries", "nodes_per_query",
+                        "overlapping_nodes_per_query"):
+                assert mine[key] == theirs[key], key
+            for key in ("particles_per_query", "negligible_bound"):
+                assert mine[key] == pytest.approx(theirs[key], rel=1e-9, abs=1e-300), key
     # A truncated EXR, and another run's EXR (1 spp) beside this run's PNG and JSON: neither
     # frame is done, both render again.
     (out / "floor_0000.exr").write_bytes((out / "floor_0000.exr").read_bytes()[:100])
