@@ -319,6 +319,48 @@ fn bad_maps_are_refused_naming_the_texel() {
     );
 }
 
+/// One roughness level cannot interpolate a map of several α: a clear error naming
+/// `roughness_levels` (it divided by `levels − 1` and panicked); a map of one α builds at one
+/// level.
+#[test]
+fn one_roughness_level_is_refused_for_a_map_of_several_values() {
+    let mut parameters = GlintParameters::new(beckmann(0.2));
+    parameters.roughness_levels = 1;
+    parameters.alpha_map = Some(Arc::new(RoughnessMap::new(2, 1, &[0.1, 0.3]).unwrap()));
+    let error = DiscreteBrdf::new(parameters.clone()).unwrap_err();
+    assert_eq!(error, BrdfError::TooFewRoughnessLevels { distinct: 2 });
+    assert!(error.to_string().contains("roughness_levels"), "{error}");
+    parameters.alpha_map = Some(Arc::new(RoughnessMap::new(2, 1, &[0.3, 0.3]).unwrap()));
+    assert_eq!(
+        DiscreteBrdf::new(parameters).unwrap().level_trees().count(),
+        1
+    );
+}
+
+/// Interpolated levels run from the map's least α to its greatest exactly: a map reaching
+/// α = 1 builds (exp∘ln overshot it to 1.0000000000000018, refused as out of range), and
+/// the levels' α are the map's extremes at both ends.
+#[test]
+fn interpolated_levels_keep_the_maps_extremes() {
+    for (least, greatest) in [(1e-4_f64, 1.0_f64), (0.013, 0.97), (0.3, 0.7)] {
+        let values: Vec<f64> = (0..64)
+            .map(|k| least * (greatest / least).powf(k as f64 / 63.0))
+            .map(|a: f64| a.clamp(least, greatest))
+            .collect();
+        for levels in [2, 5, 8, 64 - 1] {
+            let mut parameters = GlintParameters::new(beckmann(0.2));
+            parameters.roughness_levels = levels;
+            parameters.alpha_map = Some(Arc::new(RoughnessMap::new(8, 8, &values).unwrap()));
+            let brdf = DiscreteBrdf::new(parameters).unwrap();
+            let alphas: Vec<f64> = brdf.level_trees().map(|(a, _)| a.unwrap()).collect();
+            assert_eq!(alphas.len(), levels);
+            assert_eq!(alphas[0], least);
+            assert_eq!(alphas[levels - 1], greatest);
+            assert!(alphas.windows(2).all(|w| w[0] < w[1]), "{alphas:?}");
+        }
+    }
+}
+
 /// Under maps the negligible-query bound uses the largest density over the footprint: it
 /// stays above the expected count N·∫_A d·∫p of every level, and a footprint in a masked
 /// region is skipped without a traversal.

@@ -57,6 +57,7 @@ use crate::error::BrdfError;
 use crate::fresnel::Fresnel;
 use crate::glint::GlintBxdf;
 use crate::glint_sampling::{GlintSampler, PdfQuadrature};
+use crate::map_budget::MapBytes;
 use crate::negligible::NegligibleTest;
 use crate::smooth::{MicrofacetBrdf, above_horizon, given};
 use crate::surface_maps::{RoughnessLevel, RoughnessMap, TintMap, WeightedTint, roughness_levels};
@@ -354,6 +355,7 @@ impl DiscreteBrdf {
                 points: parameters.pdf_points,
             });
         }
+        MapBytes::of(&parameters)?.check()?;
         let levels = roughness_levels(
             parameters.density_map.as_ref(),
             parameters.alpha_map.as_deref(),
@@ -435,6 +437,43 @@ impl DiscreteBrdf {
         &self.layers[0].smooth
     }
 
+    /// The heap memory its maps hold, in bytes: the maps it was given and those it built from
+    /// them (the roughness levels', the density-weighted tint's). Never more than
+    /// [`crate::MAX_MAP_BYTES`] ([`crate::map_budget`]).
+    #[must_use]
+    pub fn map_bytes(&self) -> u64 {
+        let p = &self.parameters;
+        let given = p.density_map.as_ref().map_or(0, |m| m.heap_bytes())
+            + p.alpha_map.as_ref().map_or(0, |m| m.heap_bytes())
+            + p.tint_map.as_ref().map_or(0, |m| m.heap_bytes());
+        // Without a roughness map the one level's density map is the given one.
+        let levels: usize = if p.alpha_map.is_some() {
+            self.layers
+                .iter()
+                .filter_map(|layer| layer.tree.density_map())
+                .map(|map| map.heap_bytes())
+                .sum()
+        } else {
+            0
+        };
+        let weighted_tint = self
+            .weighted_tint
+            .as_ref()
+            .map_or(0, WeightedTint::heap_bytes);
+        (given + levels + weighted_tint) as u64
+    }
+
+    /// Whether every answer is the same in the three channels: a grey Fresnel term, no
+    /// coloured (Dirichlet) flakes and no tint map or a grey one. Interfaces that answer one
+    /// number for grey materials ask this, not the Fresnel term alone.
+    #[must_use]
+    pub fn is_gray(&self) -> bool {
+        let p = &self.parameters;
+        p.fresnel.is_gray()
+            && p.colour_channels == 0
+            && p.tint_map.as_ref().is_none_or(|tint| tint.is_gray())
+    }
+
     /// Whether a density, roughness or tint map varies the material over its square.
     #[must_use]
     pub fn has_maps(&self) -> bool {
@@ -465,6 +504,35 @@ impl DiscreteBrdf {
             })
             .fold(DVec3::ZERO, |a, b| a + b);
         self.tint_at(uv) * sum
+    }
+
+    /// The smooth limit averaged over the texture square: t̄·Σ_k m_k·f_k(ω_i, ω_o), the roughness
+    /// levels' smooth BRDFs weighted by their shares of the flakes m_k = ∫d_k, times the flakes'
+    /// mean tint t̄ over the square. It is what f̂ tends to over a footprint that covers many
+    /// tiles (its count is N·a(A)·Σ_k m_k·∫p_k and its tint the square's), and what a footprint
+    /// too large to query ([`Footprint::MAX_EDGE`]) shades. Without maps,
+    /// [`DiscreteBrdf::smooth`]'s value, bit for bit.
+    #[must_use]
+    pub fn smooth_mean(&self, wi: DVec3, wo: DVec3) -> DVec3 {
+        if !self.has_maps() {
+            return self.layers[0].smooth.eval(wi, wo);
+        }
+        let sum = self
+            .layers
+            .iter()
+            .map(|layer| layer.smooth.eval(wi, wo) * layer.mean_density)
+            .fold(DVec3::ZERO, |a, b| a + b);
+        self.mean_tint() * sum
+    }
+
+    /// The flakes' mean tint over the square (density-weighted where the density map has the
+    /// tint's size, as [`DiscreteBrdf::at`] weighs it over a footprint), or 1 without a tint.
+    fn mean_tint(&self) -> DVec3 {
+        match (&self.weighted_tint, &self.parameters.tint_map) {
+            (Some(weighted), _) => weighted.mean(),
+            (None, Some(tint)) => tint.mean(),
+            (None, None) => DVec3::ONE,
+        }
     }
 
     /// The count tree (the particle set) of the first roughness level (the only one without

@@ -83,6 +83,18 @@ pub enum BrdfError {
         /// The rejected value.
         levels: usize,
     },
+    /// One roughness level holds one α: a roughness map of several needs at least two levels
+    /// to interpolate between.
+    TooFewRoughnessLevels {
+        /// The roughness map's distinct values.
+        distinct: usize,
+    },
+    /// The material's maps would hold more than [`crate::MAX_MAP_BYTES`] (see
+    /// [`crate::map_budget`]); nothing was allocated.
+    MapsTooLarge {
+        /// What they would hold.
+        bytes: crate::MapBytes,
+    },
 }
 
 impl fmt::Display for BrdfError {
@@ -153,6 +165,31 @@ impl fmt::Display for BrdfError {
             ),
             Self::InvalidRoughnessLevels { levels } => {
                 write!(f, "{levels} roughness levels requested: use 1 to 64")
+            }
+            Self::TooFewRoughnessLevels { distinct } => write!(
+                f,
+                "roughness_levels = 1 holds one alpha, but alpha_map has {distinct} distinct \
+                 values: give roughness_levels >= 2 (levels interpolated in log alpha) or a map \
+                 of one value"
+            ),
+            Self::MapsTooLarge { bytes } => {
+                let gb = |b: u64| format!("{:.2} GB", b as f64 / 1e9);
+                write!(f, "the material's maps would hold {}", gb(bytes.total()))?;
+                if let Some((width, height, levels)) = bytes.roughness {
+                    write!(
+                        f,
+                        " (alpha_map {width} x {height} texels at roughness_levels = {levels}: \
+                         {} level maps, {})",
+                        bytes.level_maps,
+                        gb(bytes.levels)
+                    )?;
+                }
+                write!(
+                    f,
+                    ", more than the {} a material may hold: lower roughness_levels or the maps' \
+                     resolution",
+                    gb(crate::MAX_MAP_BYTES)
+                )
             }
         }
     }

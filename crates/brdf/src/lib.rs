@@ -55,6 +55,7 @@ pub mod frame;
 pub mod fresnel;
 mod glint;
 mod glint_sampling;
+pub mod map_budget;
 mod negligible;
 mod qmc;
 mod slope_pdf;
@@ -72,6 +73,7 @@ pub use glint_sampling::PdfQuadrature;
 pub use glint_tree::{
     DensityMap, DensityMapError, Footprint, MultinomialMode, QueryScratch, TreeError,
 };
+pub use map_budget::{MAX_MAP_BYTES, MapBytes};
 pub use smooth::MicrofacetBrdf;
 pub use surface_maps::{RoughnessMap, TintMap};
 

@@ -76,6 +76,12 @@ impl RoughnessMap {
         (self.width, self.height)
     }
 
+    /// The heap memory it holds, in bytes (8 a texel).
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(self.values.as_slice())
+    }
+
     /// α of the texel in `column` and `row` (row 0 at the top).
     #[must_use]
     pub fn texel(&self, column: usize, row: usize) -> f64 {
@@ -139,6 +145,19 @@ impl TintMap {
         (self.width, self.height)
     }
 
+    /// The heap memory it holds, in bytes: its texels (24 a texel) and each non-zero channel's
+    /// density map ([`DensityMap::bytes_for`]).
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(self.values.as_slice()) + channel_bytes(&self.channels)
+    }
+
+    /// Whether every texel is grey (r = g = b), so that the tint scales every channel alike.
+    #[must_use]
+    pub fn is_gray(&self) -> bool {
+        self.values.iter().all(|t| t[0] == t[1] && t[1] == t[2])
+    }
+
     /// t at texture point `uv` (wrapped into the square): the tint without a footprint.
     #[must_use]
     pub fn value_at(&self, uv: DVec2) -> DVec3 {
@@ -146,6 +165,16 @@ impl TintMap {
         let column = ((uv.x * self.width as f64) as usize).min(self.width - 1);
         let row_from_bottom = ((uv.y * self.height as f64) as usize).min(self.height - 1);
         DVec3::from_array(self.values[(self.height - 1 - row_from_bottom) * self.width + column])
+    }
+
+    /// ∫t over the square: the mean tint.
+    #[must_use]
+    pub fn mean(&self) -> DVec3 {
+        DVec3::from_array(
+            self.channels
+                .each_ref()
+                .map(|c| c.as_ref().map_or(0.0, |map| map.mean())),
+        )
     }
 
     /// t̄ = ∫_A t / area(A) over the footprint's parallelogram (each tile it covers counted):
@@ -199,6 +228,21 @@ impl WeightedTint {
         }))
     }
 
+    /// The heap memory of its channels' maps, in bytes (the density map is the material's).
+    pub(crate) fn heap_bytes(&self) -> usize {
+        channel_bytes(&self.channels)
+    }
+
+    /// ∫d·t / ∫d over the square: the flakes' mean tint.
+    pub(crate) fn mean(&self) -> DVec3 {
+        let mass = self.density.mean();
+        DVec3::from_array(
+            self.channels
+                .each_ref()
+                .map(|c| c.as_ref().map_or(0.0, |map| map.mean() / mass)),
+        )
+    }
+
     /// ∫_A d·t / ∫_A d over the footprint; `None` where the footprint holds no density.
     pub(crate) fn mean_over(&self, footprint: &Footprint) -> Option<DVec3> {
         let mass = self.density.mass_in(footprint);
@@ -210,6 +254,11 @@ impl WeightedTint {
             )
         })
     }
+}
+
+/// The heap memory of a tint's per-channel density maps.
+fn channel_bytes(channels: &[Option<Arc<DensityMap>>; 3]) -> usize {
+    channels.iter().flatten().map(|map| map.heap_bytes()).sum()
 }
 
 /// Checks a map's size against its values' count.
@@ -239,13 +288,54 @@ pub(crate) struct RoughnessLevel {
     pub(crate) density: Option<Arc<DensityMap>>,
 }
 
-/// The roughness levels of a material with density map `density` and roughness map `alpha`,
-/// at most `levels` of them (see the module docs); levels whose density is 0 everywhere are
-/// left out. Without a roughness map, one level: the material's α and its density map.
+/// The α of each roughness level for roughness map `alpha` and at most `levels` levels (see
+/// the module docs), and whether they are exact (the map's own distinct values). Interpolated
+/// levels run from the map's least to its greatest α, both exactly, evenly in log α between.
 ///
 /// # Errors
-/// [`BrdfError::MapSizesDiffer`] when both maps are given with different sizes;
-/// [`BrdfError::InvalidRoughnessLevels`] unless 1 ≤ `levels` ≤ [`MAX_ROUGHNESS_LEVELS`].
+/// [`BrdfError::InvalidRoughnessLevels`] unless 1 ≤ `levels` ≤ [`MAX_ROUGHNESS_LEVELS`];
+/// [`BrdfError::TooFewRoughnessLevels`] for one level and a map of more than one α (the hat
+/// functions need two levels to interpolate between).
+pub(crate) fn level_alphas(
+    alpha: &RoughnessMap,
+    levels: usize,
+) -> Result<(Vec<f64>, bool), BrdfError> {
+    if !(1..=MAX_ROUGHNESS_LEVELS).contains(&levels) {
+        return Err(BrdfError::InvalidRoughnessLevels { levels });
+    }
+    let mut distinct: Vec<f64> = alpha.values.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    if distinct.len() <= levels {
+        return Ok((distinct, true));
+    }
+    if levels == 1 {
+        return Err(BrdfError::TooFewRoughnessLevels {
+            distinct: distinct.len(),
+        });
+    }
+    let (least, greatest) = (distinct[0], distinct[distinct.len() - 1]);
+    let (low, high) = (least.ln(), greatest.ln());
+    let interpolated = (0..levels)
+        .map(|k| match k {
+            0 => least,
+            k if k == levels - 1 => greatest,
+            k => (low + (high - low) * k as f64 / (levels - 1) as f64)
+                .exp()
+                .clamp(least, greatest),
+        })
+        .collect();
+    Ok((interpolated, false))
+}
+
+/// The roughness levels of a material with density map `density` and roughness map `alpha`,
+/// at most `levels` of them (see the module docs); levels whose density is 0 everywhere are
+/// left out. Without a roughness map, one level: the material's α and its density map. The
+/// levels' density maps are built one at a time (one map's texels at once besides them).
+///
+/// # Errors
+/// [`BrdfError::MapSizesDiffer`] when both maps are given with different sizes; those of
+/// [`level_alphas`].
 pub(crate) fn roughness_levels(
     density: Option<&Arc<DensityMap>>,
     alpha: Option<&RoughnessMap>,
@@ -270,43 +360,35 @@ pub(crate) fn roughness_levels(
         });
     }
     let d = |k: usize| density.map_or(1.0, |map| map.texel(k % width, k / width));
-    let mut distinct: Vec<f64> = alpha.values.clone();
-    distinct.sort_by(f64::total_cmp);
-    distinct.dedup();
-    // The levels, and each texel's weights on them (two adjacent levels at most).
-    let exact = distinct.len() <= levels;
-    let level_alphas: Vec<f64> = if exact {
-        distinct.clone()
-    } else {
-        let (low, high) = (distinct[0].ln(), distinct[distinct.len() - 1].ln());
-        (0..levels)
-            .map(|k| (low + (high - low) * k as f64 / (levels - 1) as f64).exp())
-            .collect()
-    };
-    let weights = |a: f64| -> [(usize, f64); 2] {
+    let (alphas, exact) = level_alphas(alpha, levels)?;
+    // Texel k's weight on level `level`: 1 on its own α where exact, else the hat function of
+    // log α centred on the level (non-zero on two adjacent levels at most).
+    let (low, high) = (alphas[0].ln(), alphas[alphas.len() - 1].ln());
+    let last = alphas.len() - 1;
+    let weight = |a: f64, level: usize| -> f64 {
         if exact {
-            let k = level_alphas.partition_point(|&l| l < a);
-            return [(k, 1.0), (k, 0.0)];
+            return if a == alphas[level] { 1.0 } else { 0.0 };
         }
-        let (low, high) = (level_alphas[0].ln(), level_alphas[levels - 1].ln());
-        let position =
-            ((a.ln() - low) / (high - low) * (levels - 1) as f64).clamp(0.0, (levels - 1) as f64);
-        let k = (position.floor() as usize).min(levels - 2);
-        let f = position - k as f64;
-        [(k, 1.0 - f), (k + 1, f)]
+        let position = ((a.ln() - low) / (high - low) * last as f64).clamp(0.0, last as f64);
+        let below = (position.floor() as usize).min(last - 1);
+        let above = position - below as f64;
+        match level {
+            l if l == below => 1.0 - above,
+            l if l == below + 1 => above,
+            _ => 0.0,
+        }
     };
-    let mut level_values = vec![vec![0.0; width * height]; level_alphas.len()];
-    for (k, &a) in alpha.values.iter().enumerate() {
-        for (level, w) in weights(a) {
-            level_values[level][k] += d(k) * w;
-        }
-    }
     let mut result = Vec::new();
-    for (a, values) in level_alphas.into_iter().zip(level_values) {
-        let values: Vec<f64> = values.into_iter().map(|v| v.min(1.0)).collect();
+    for (level, &level_alpha) in alphas.iter().enumerate() {
+        let values: Vec<f64> = alpha
+            .values
+            .iter()
+            .enumerate()
+            .map(|(k, &a)| (d(k) * weight(a, level)).min(1.0))
+            .collect();
         match DensityMap::new(width, height, &values) {
             Ok(map) => result.push(RoughnessLevel {
-                alpha: Some(a),
+                alpha: Some(level_alpha),
                 density: Some(Arc::new(map)),
             }),
             Err(DensityMapError::Empty) => {}

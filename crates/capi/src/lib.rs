@@ -762,7 +762,9 @@ fn field_of(error: glint_brdf::BrdfError, p: &GlintMaterialParams) -> &'static s
             "expected_footprint_area"
         }
         E::Tree(TreeError::ParticleCountOutOfRange { .. }) => "particles",
-        E::InvalidRoughnessLevels { .. } => "roughness_levels",
+        E::InvalidRoughnessLevels { .. }
+        | E::TooFewRoughnessLevels { .. }
+        | E::MapsTooLarge { .. } => "roughness_levels",
         E::MapSizesDiffer { .. } => "alpha_map",
         _ => "params",
     }

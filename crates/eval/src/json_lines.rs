@@ -14,19 +14,28 @@ use crate::request::{EvalMaterial, uniforms_from_three};
 /// up to 0.3 s for the most anisotropic) if it comes back.
 pub const MATERIAL_CACHE_SIZE: usize = 64;
 
-/// The most memory the cached materials may take together, by [`material_bytes`]'s estimate:
-/// 64 ordinary materials (about 2 MB each) fit; of the most anisotropic (α = 10⁻⁴ against
-/// α_y = 1, about 50 MB each), five.
+/// The most memory the cached materials may take together, by [`material_bytes`]: 64 ordinary
+/// materials (about 2 MB each) fit; of the most anisotropic (α = 10⁻⁴ against α_y = 1, about
+/// 50 MB each), five. A single material larger than this (large maps at many roughness
+/// levels, up to [`glint_brdf::MAX_MAP_BYTES`]) is kept alone, only while the lines that use
+/// it follow each other.
 pub const MATERIAL_CACHE_BYTES: usize = 256 << 20;
 
-/// A built material's memory, estimated from its Alg. 2 table: 1.6 MB plus 530 bytes per
-/// entry (the table, the directional split of each entry's cell, its descent steps). Measured
-/// as the peak resident memory of `cargo xtask eval` on one line per material, less that of
-/// the process: Beckmann α = 0.1, 684 entries, 2.0 MB; α = 10⁻³ and α_y = 0.3, 13 380 entries,
-/// 6.6 MB; α = 10⁻⁴ and α_y = 1, 78 560 entries, 43 MB; GGX at those, 97 472 entries, 52 MB
-/// (`docs/eval.md`, "Limits", gives the command).
+/// A built material's memory: the bytes its maps hold ([`glint_brdf::DiscreteBrdf::map_bytes`],
+/// exact) plus, for each roughness level's count tree, an estimate from its Alg. 2 table:
+/// 1.6 MB plus 530 bytes per entry (the table, the directional split of each entry's cell,
+/// its descent steps). The estimate was measured as the peak resident memory of
+/// `cargo xtask eval` on one line per material, less that of the process: Beckmann α = 0.1,
+/// 684 entries, 2.0 MB; α = 10⁻³ and α_y = 0.3, 13 380 entries, 6.6 MB; α = 10⁻⁴ and
+/// α_y = 1, 78 560 entries, 43 MB; GGX at those, 97 472 entries, 52 MB (`docs/eval.md`,
+/// "Limits", gives the command).
 fn material_bytes(material: &EvalMaterial) -> usize {
-    (1_600_000 + 530 * material.brdf().tree().quadrature().len()).min(MATERIAL_CACHE_BYTES)
+    let brdf = material.brdf();
+    let trees: usize = brdf
+        .level_trees()
+        .map(|(_, tree)| 1_600_000 + 530 * tree.quadrature().len())
+        .sum();
+    trees.saturating_add(usize::try_from(brdf.map_bytes()).unwrap_or(usize::MAX))
 }
 
 /// The fields a request may hold.
@@ -169,7 +178,7 @@ struct Cached {
 
 /// The material of `key` (its JSON text) from `materials`, built if it is not there, marked as
 /// used by request `now`; the least recently used ones make room when the cache is full (in
-/// number or in memory).
+/// number or in memory). A material larger than the cache empties it and stays alone.
 fn cached<'a>(
     materials: &'a mut HashMap<String, Cached>,
     now: u64,
@@ -257,6 +266,57 @@ mod tests {
         }
         assert_eq!(requests.cached_materials(), MATERIAL_CACHE_BYTES / one);
         assert_eq!(requests.answer(&line(0)).unwrap(), first);
+    }
+
+    /// A material's maps count in the cache's memory: three materials with a 512² roughness
+    /// map at 12 levels (84 MB of level maps each) leave two cached, not 64 (each was counted
+    /// as 2 MB, and the cache grew by the maps' size with every line).
+    #[test]
+    fn the_material_cache_counts_the_maps() {
+        let side = 512;
+        let rows: Vec<String> = (0..side)
+            .map(|j| {
+                let row: Vec<String> = (0..side)
+                    .map(|i| format!("{}", 0.05 + 0.2 * ((i * 7 + j * 13) % 101) as f64 / 100.0))
+                    .collect();
+                format!("[{}]", row.join(","))
+            })
+            .collect();
+        let alpha_map = format!("[{}]", rows.join(","));
+        let line = |seed: usize| {
+            format!(
+                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "seed": {seed}, "alpha_map": {alpha_map}, "roughness_levels": 12}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+            )
+        };
+        let mut requests = JsonLines::new();
+        requests.answer(&line(0)).unwrap();
+        let one = requests.cached_bytes();
+        let level_maps = 12 * glint_brdf::DensityMap::bytes_for(side, side);
+        assert!(one > level_maps, "{one} bytes counted");
+        for seed in 1..3 {
+            requests.answer(&line(seed)).unwrap();
+            assert!(requests.cached_bytes() <= MATERIAL_CACHE_BYTES);
+        }
+        assert_eq!(requests.cached_materials(), 2);
+    }
+
+    /// A coloured tint map makes the answers colours even without a Fresnel term: a cyan tint
+    /// gives red 0 and green = blue (it answered one number, the red channel's 0).
+    #[test]
+    fn a_coloured_tint_answers_colours_without_fresnel() {
+        let line = |tint: &str| {
+            format!(
+                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e9, "gamma_degrees": 1.0, "tint_map": [[{tint}]]}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+            )
+        };
+        let mut requests = JsonLines::new();
+        let cyan = requests.answer(&line("[0, 1, 1]")).unwrap();
+        for column in ["f_hat", "f_smooth"] {
+            let [r, g, b] = [0, 1, 2].map(|c| cyan[column][c].as_f64().unwrap());
+            assert!(r == 0.0 && g > 0.0 && g == b, "{column}: {cyan}");
+        }
+        let grey = requests.answer(&line("[0.5, 0.5, 0.5]")).unwrap();
+        assert!(grey["f_hat"].is_number(), "{grey}");
     }
 
     /// `gamma_degrees` names γ; `gamma_deg`, its older name, answers the same, bit for bit;

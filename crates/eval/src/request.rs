@@ -99,7 +99,7 @@ pub struct SampleAnswer {
 
 impl EvalMaterial {
     pub(crate) fn new(brdf: DiscreteBrdf) -> Self {
-        let gray = brdf.smooth().fresnel().is_gray();
+        let gray = brdf.is_gray();
         Self { brdf, gray }
     }
 
@@ -109,7 +109,8 @@ impl EvalMaterial {
         &self.brdf
     }
 
-    /// Whether the Fresnel term is the same in every channel (colours are then one number).
+    /// Whether every answer is the same in every channel ([`DiscreteBrdf::is_gray`]): colours
+    /// are then one number.
     #[must_use]
     pub fn is_gray(&self) -> bool {
         self.gray

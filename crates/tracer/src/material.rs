@@ -323,11 +323,23 @@ impl GlintMaterial {
         self.brdf.sampling_pdf_at(wi, wo, self.texture_position(uv))
     }
 
-    /// f̂ for the context's footprint (counting the query), or the smooth limit at the shading
-    /// point without one.
+    /// The smooth limit where no glint query is made: at the shading point without a
+    /// footprint; averaged over the particle square ([`glint_brdf::DiscreteBrdf::smooth_mean`])
+    /// for a footprint too large (or not finite) to query, which covers more tiles than a
+    /// query may span and so sees the whole square's flakes, not the texel under `uv`.
+    fn smooth_unqueried(&self, wi: DVec3, wo: DVec3, ctx: &ShadingContext<'_>) -> DVec3 {
+        if ctx.footprint.is_some() {
+            self.brdf.smooth_mean(wi, wo)
+        } else {
+            self.smooth_at(wi, wo, ctx.uv)
+        }
+    }
+
+    /// f̂ for the context's footprint (counting the query), or the smooth limit
+    /// ([`Self::smooth_unqueried`]) without one it can query.
     fn eval(&self, wi: DVec3, wo: DVec3, ctx: &mut ShadingContext<'_>) -> DVec3 {
         let Some(footprint) = self.footprint(ctx) else {
-            return self.smooth_at(wi, wo, ctx.uv);
+            return self.smooth_unqueried(wi, wo, ctx);
         };
         let result = self.brdf.at(&footprint, ctx.scratch).evaluate(wi, wo);
         ctx.counters.record(&result);
@@ -346,7 +358,7 @@ impl GlintMaterial {
         visible: impl FnOnce() -> bool,
     ) -> Option<DVec3> {
         let Some(footprint) = self.footprint(ctx) else {
-            return nonzero_where_visible(self.smooth_at(wi, wo, ctx.uv), visible);
+            return nonzero_where_visible(self.smooth_unqueried(wi, wo, ctx), visible);
         };
         let result = self
             .brdf
@@ -689,7 +701,9 @@ impl Lobe {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glint_brdf::{DistributionKind, GlintParameters, Microfacet, NormalSampling};
+    use glint_brdf::{
+        DensityMap, DistributionKind, GlintParameters, Microfacet, NormalSampling, TintMap,
+    };
 
     fn materials() -> Vec<Material> {
         let ggx = Microfacet::new(DistributionKind::Ggx, 0.2, 0.2).unwrap();
@@ -858,6 +872,48 @@ mod tests {
         let _ = glint.eval(wi, wo, &mut ctx);
         assert_eq!(counters.queries, 1);
         assert!(counters.nodes_visited > 0);
+    }
+
+    /// A mapped material under a footprint too large to query shades the smooth limit averaged
+    /// over its square, as f̂ over a footprint of many tiles does: half a density map at 0
+    /// gives half the light of the unmapped material (it shaded the texel under uv, 1.00×),
+    /// and a tint its mean.
+    #[test]
+    fn footprints_beyond_the_limit_under_maps_shade_the_squares_mean() {
+        let mut parameters =
+            GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap());
+        parameters.gamma_radians = 5f64.to_radians();
+        let plain = DiscreteBrdf::new(parameters.clone()).unwrap();
+        parameters.density_map = Some(Arc::new(DensityMap::new(2, 1, &[1.0, 0.0]).unwrap()));
+        parameters.tint_map = Some(Arc::new(
+            TintMap::new(2, 1, &[[1.0, 0.5, 0.25], [0.0, 0.0, 1.0]]).unwrap(),
+        ));
+        let glint = GlintMaterial {
+            brdf: Arc::new(DiscreteBrdf::new(parameters).unwrap()),
+            uv_scale: 1.0,
+            plan_footprint_area: false,
+        };
+        let mut scratch = QueryScratch::new();
+        let mut counters = GlintCounters::default();
+        let wi = DVec3::new(0.3, 0.0, 0.954).normalize();
+        let wo = DVec3::new(-0.3, 0.05, 0.954).normalize();
+        let smooth = plain.smooth().eval(wi, wo);
+        // The flakes' tint: the density is 0 where the tint is blue.
+        let expected = smooth * 0.5 * DVec3::new(1.0, 0.5, 0.25);
+        for uv in [DVec2::new(0.25, 0.5), DVec2::new(0.75, 0.5)] {
+            let mut ctx = ShadingContext {
+                uv,
+                footprint: Some((DVec2::new(1e17, 0.0), DVec2::new(0.0, 1e-3))),
+                scratch: &mut scratch,
+                counters: &mut counters,
+            };
+            let f = glint.eval(wi, wo, &mut ctx);
+            assert!(
+                (f - expected).abs().max_element() <= 1e-12 * smooth.x,
+                "{f} {expected}"
+            );
+        }
+        assert_eq!(counters.queries, 0);
     }
 
     /// A footprint beyond what a footprint may span (edges past ±10¹⁵ particle squares, as a

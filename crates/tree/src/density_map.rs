@@ -83,9 +83,14 @@ impl fmt::Display for DensityMapError {
             }
             Self::InvalidTexel { column, row, value } => write!(
                 f,
-                "texel (column {column}, row {row}) is {value}: densities must be in [0, 1]"
+                "texel (column {column}, row {row}) is {value:?}: densities must be in [0, 1]"
             ),
-            Self::Empty => write!(f, "every texel is 0: the material would hold no particle"),
+            Self::Empty => write!(
+                f,
+                "every texel is 0 (or below 2^-33 = {:.2e}, half the map's fixed-point step, which \
+                 rounds to 0): the material would hold no particle",
+                0.5 / FIXED_ONE
+            ),
         }
     }
 }
@@ -191,8 +196,30 @@ impl TexelSpan {
 }
 
 impl DensityMap {
-    /// The largest map: 2²⁴ texels (4096 × 4096), 400 MB of tables.
+    /// The largest map: 2²⁴ texels (4096 × 4096), 448 MB of tables ([`Self::bytes_for`]).
     pub const MAX_TEXELS: usize = 1 << 24;
+
+    /// The heap memory, in bytes, of a `width` × `height` map: its fixed-point values and
+    /// summed-area table (8 bytes a texel each), the two tables of value changes (4 bytes a
+    /// texel each) and the pyramid of maxima (about 8/3 bytes a texel). A function of the size
+    /// alone, so a material can check its budget before it builds a map.
+    #[must_use]
+    pub fn bytes_for(width: usize, height: usize) -> usize {
+        let u64s = width * height + (width + 1) * (height + 1);
+        let u32s = (height + 1) * width + height * (width + 1);
+        let (mut w, mut h, mut maxima) = (width, height, 0);
+        while w > 1 || h > 1 {
+            (w, h) = (w.div_ceil(2), h.div_ceil(2));
+            maxima += w * h;
+        }
+        8 * (u64s + maxima) + 4 * u32s
+    }
+
+    /// The heap memory this map holds, in bytes: [`Self::bytes_for`] its size.
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        Self::bytes_for(self.width, self.height)
+    }
 
     /// A map of `width` × `height` texels from `values` given row by row, **row 0 at the top of
     /// the texture** (v from 1 − 1/H to 1), column 0 starting at u = 0: the order of an image.
@@ -654,6 +681,27 @@ fn polygon_area(points: &[DVec2]) -> f64 {
 mod tests {
     use super::*;
     use crate::tea::{TeaRng, unit_pair};
+
+    /// `bytes_for` is what a built map's tables hold, for sizes with odd sides, single rows and
+    /// columns, and powers of two.
+    #[test]
+    fn bytes_for_is_the_tables_length() {
+        for (width, height) in [(1, 1), (1, 7), (9, 1), (5, 3), (16, 16), (33, 17), (64, 1)] {
+            let values: Vec<f64> = (0..width * height)
+                .map(|k| (k % 3 + 1) as f64 / 3.0)
+                .collect();
+            let map = DensityMap::new(width, height, &values).unwrap();
+            let held = 8
+                * (map.fixed.len()
+                    + map.sat.len()
+                    + map.max_levels.iter().map(|l| l.maxima.len()).sum::<usize>())
+                + 4 * (map.column_changes.len() + map.row_changes.len());
+            assert_eq!(map.heap_bytes(), held, "{width} x {height}");
+        }
+        // About 27 bytes a texel for a large map, as the module docs say.
+        let per_texel = DensityMap::bytes_for(4096, 4096) as f64 / (4096.0 * 4096.0);
+        assert!((26.5..27.0).contains(&per_texel), "{per_texel}");
+    }
 
     /// A map of `width` × `height` with a few repeated values (so some boxes are constant),
     /// zeros included.
