@@ -146,6 +146,22 @@ pub(crate) unsafe fn read_array<const N: usize>(
     unsafe { read(pointer.cast::<[f64; N]>(), name) }
 }
 
+/// `Ok` when an array of `n` values of `T` could exist (at most `isize::MAX` bytes, Rust's and
+/// C's bound on one object): a larger `n` is a caller's mistake, refused before any use.
+fn fits_in_memory<T>(n: usize, name: &str) -> Result<(), Failure> {
+    let fits = n
+        .checked_mul(std::mem::size_of::<T>())
+        .is_some_and(|bytes| bytes <= isize::MAX as usize);
+    if fits {
+        Ok(())
+    } else {
+        Err(Failure::argument(format!(
+            "`{name}`: an array of {n} values of {} bytes is larger than memory can hold (check `n`)",
+            std::mem::size_of::<T>()
+        )))
+    }
+}
+
 /// The caller's array of `n` values of `T` as a slice (empty for `n` = 0, where the pointer may
 /// be NULL).
 ///
@@ -161,6 +177,7 @@ pub(crate) unsafe fn read_slice<'a, T>(
         return Ok(&[]);
     }
     non_null(pointer, name)?;
+    fits_in_memory::<T>(n, name)?;
     // SAFETY: non-NULL (checked above); n readable values by the contract.
     Ok(unsafe { std::slice::from_raw_parts(pointer, n) })
 }
@@ -181,6 +198,7 @@ pub(crate) unsafe fn write_slice<'a, T: Copy>(
         return Ok(&mut []);
     }
     non_null(pointer, name)?;
+    fits_in_memory::<T>(n, name)?;
     // SAFETY: non-NULL (checked above); writable for n values and used by this call alone,
     // by the contract; `MaybeUninit` makes no claim that the memory is initialized.
     Ok(unsafe { std::slice::from_raw_parts_mut(pointer.cast(), n) })

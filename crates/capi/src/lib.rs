@@ -78,7 +78,8 @@ pub use crate::types::{
 
 /// Fills `*params` with the defaults of glint-brdf's `GlintParameters::new` around Beckmann
 /// α = 0.1: N = 1e6, γ = 1°, ε = 0.1, seed 0, no Fresnel term, exact multinomials, an
-/// expected footprint of 1e-6, 64 pdf points, every query traversed (negligible count 0).
+/// expected footprint of 1e-6, 64 pdf points, a negligible count of 1e-12 (glint-tracer's and
+/// `eval`'s: queries provably below it answer 0 untraversed).
 ///
 /// # Safety
 /// `params` is NULL or points to writable memory for a `GlintMaterialParams`.
@@ -203,6 +204,10 @@ pub unsafe extern "C" fn glint_eval(
     })
 }
 
+/// The most rows `glint_eval_batch` hands its pool at once: its own memory (row order and
+/// answers, about 100 bytes a row) stays bounded whatever `n`.
+const BATCH_CHUNK_ROWS: usize = 1 << 14;
+
 /// `glint_eval` for `n` rows at once, in parallel, at a renderer's speed: row i is the
 /// footprint `footprints[i]` with the directions `wi[3i..3i+3]`, `wo[3i..3i+3]`, answered in
 /// `evaluations[i]` with its status in `statuses[i]` (`GLINT_OK`, or `GLINT_INVALID_ARGUMENT`
@@ -250,35 +255,39 @@ pub unsafe extern "C" fn glint_eval_batch(
             )
         };
         let pool = glint_eval::batch::process_pool().map_err(Failure::argument)?;
-        let rows: Vec<usize> = (0..n).collect();
         let cancelled = AtomicBool::new(false);
-        let answers = pool.install(|| {
-            glint_eval::batch::answer_rows(
-                &rows,
-                |&i| glint_eval::batch::locality_key(footprints[i].uv),
-                &cancelled,
-                |scratch, &i| {
-                    let footprint = footprint_from(footprints[i])?;
-                    let wi = direction(std::array::from_fn(|k| wi[3 * i + k]), "wi")?;
-                    let wo = direction(std::array::from_fn(|k| wo[3 * i + k]), "wo")?;
-                    let e = material.brdf.at(&footprint, scratch).evaluate(wi, wo);
-                    Ok::<_, Failure>(evaluation_of(&e))
-                },
-            )
-        });
         let mut first_failure = None;
-        for (i, answer) in answers.into_iter().enumerate() {
-            let answer = answer.expect("never cancelled");
-            let (evaluation, status) = match answer {
-                Ok(e) => (e, GlintStatus::GLINT_OK),
-                Err(failure) => {
-                    let status = failure.status();
-                    first_failure.get_or_insert((i, failure));
-                    (GlintEvaluation::ZERO, status)
-                }
-            };
-            evaluations[i].write(evaluation);
-            statuses[i].write(status);
+        // Rows go to the pool a chunk at a time, so that this call's own memory is bounded
+        // whatever `n` (each row's answer does not depend on the others).
+        for start in (0..n).step_by(BATCH_CHUNK_ROWS) {
+            let rows: Vec<usize> = (start..n.min(start + BATCH_CHUNK_ROWS)).collect();
+            let answers = pool.install(|| {
+                glint_eval::batch::answer_rows(
+                    &rows,
+                    |&i| glint_eval::batch::locality_key(footprints[i].uv),
+                    &cancelled,
+                    |scratch, &i| {
+                        let footprint = footprint_from(footprints[i])?;
+                        let wi = direction(std::array::from_fn(|k| wi[3 * i + k]), "wi")?;
+                        let wo = direction(std::array::from_fn(|k| wo[3 * i + k]), "wo")?;
+                        let e = material.brdf.at(&footprint, scratch).evaluate(wi, wo);
+                        Ok::<_, Failure>(evaluation_of(&e))
+                    },
+                )
+            });
+            for (&i, answer) in rows.iter().zip(answers) {
+                let answer = answer.expect("never cancelled");
+                let (evaluation, status) = match answer {
+                    Ok(e) => (e, GlintStatus::GLINT_OK),
+                    Err(failure) => {
+                        let status = failure.status();
+                        first_failure.get_or_insert((i, failure));
+                        (GlintEvaluation::ZERO, status)
+                    }
+                };
+                evaluations[i].write(evaluation);
+                statuses[i].write(status);
+            }
         }
         match first_failure {
             None => Ok(()),

@@ -1383,6 +1383,54 @@ fn batches_answer_as_glint_eval_row_by_row() {
             .map(|e| e.unwrap())
             .collect::<Vec<_>>()
     );
+    // A batch of more rows than the call hands its pool at once (2^14) answers every row as
+    // glint_eval, across the chunks' edges.
+    let copies = 37;
+    let long_footprints: Vec<GlintFootprint> = footprints.repeat(copies);
+    let (long_wi, long_wo) = (wi.repeat(copies), wo.repeat(copies));
+    let n = long_footprints.len();
+    let mut evaluations = vec![empty_evaluation(); n];
+    let mut statuses = vec![GLINT_OK; n];
+    // SAFETY: a live material; n footprints, 3n doubles each and n writable results.
+    let status = unsafe {
+        glint_eval_batch(
+            handles.material,
+            n,
+            long_footprints.as_ptr(),
+            long_wi.as_ptr(),
+            long_wo.as_ptr(),
+            evaluations.as_mut_ptr(),
+            statuses.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, GLINT_INVALID_ARGUMENT);
+    for (i, evaluation) in evaluations.iter().enumerate() {
+        match single[i % footprints.len()] {
+            Some(expected) => assert_eq!(*evaluation, expected, "row {i}"),
+            None => assert_eq!(
+                (statuses[i], evaluation.count),
+                (GLINT_INVALID_ARGUMENT, 0.0)
+            ),
+        }
+    }
+    // An `n` no array can hold is refused before anything is read (it aborted the process on
+    // allocating its row order).
+    let huge = usize::MAX / std::mem::size_of::<GlintEvaluation>() + 1;
+    // SAFETY: the call checks `n` against what memory can hold before reading any array.
+    let status = unsafe {
+        glint_eval_batch(
+            handles.material,
+            huge,
+            footprints.as_ptr(),
+            wi.as_ptr(),
+            wo.as_ptr(),
+            evaluations.as_mut_ptr(),
+            statuses.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, GLINT_INVALID_ARGUMENT);
+    let message = last_error();
+    assert!(message.contains("larger than memory can hold"), "{message}");
     // Nothing to do: NULL arrays are fine when n is 0; NULL with rows is named.
     // SAFETY: n = 0 reads and writes nothing; the material is live.
     let status = unsafe {
