@@ -67,6 +67,45 @@ pub fn linear_to_srgb(c: f64) -> f64 {
     }
 }
 
+/// For a palette PNG, an error naming the first pixel whose index lies beyond the palette
+/// (decoders expand such an index to black, silently); other PNGs pass untouched. Decodes the
+/// indices once, unexpanded.
+fn check_palette_indices(bytes: &[u8]) -> Result<(), String> {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
+    let info = reader.info();
+    if info.color_type != png::ColorType::Indexed {
+        return Ok(());
+    }
+    let entries = info.palette.as_ref().map_or(0, |p| p.len() / 3);
+    let (width, height) = (info.width as usize, info.height as usize);
+    check_size(width, height)?;
+    let bits = info.bit_depth as usize;
+    let size = reader
+        .output_buffer_size()
+        .ok_or("the image is too large")?;
+    let mut buffer = vec![0u8; size];
+    let frame = reader.next_frame(&mut buffer).map_err(|e| e.to_string())?;
+    for (y, row) in buffer
+        .chunks(frame.line_size.max(1))
+        .take(height)
+        .enumerate()
+    {
+        for x in 0..width {
+            let bit = x * bits;
+            let index = usize::from(row[bit / 8] >> (8 - bits - bit % 8)) & ((1 << bits) - 1);
+            if index >= entries {
+                return Err(format!(
+                    "pixel ({x}, {y}) is palette index {index}, beyond the palette's {entries} \
+                     entries"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 impl RgbImage {
     /// An image of one colour.
     #[must_use]
@@ -133,6 +172,7 @@ impl RgbImage {
             PngValues::Srgb => srgb_to_linear,
             PngValues::Linear => |c: f64| c,
         };
+        check_palette_indices(bytes)?;
         let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
         decoder.set_transformations(png::Transformations::EXPAND);
         let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
@@ -179,7 +219,8 @@ impl RgbImage {
         Self::checked(width, height, pixels)
     }
 
-    /// Decodes an OpenEXR file held in memory (its first RGBA layer, linear), as
+    /// Decodes an OpenEXR file held in memory (its first RGBA layer, linear; a grey file of one
+    /// `Y` channel gives Y in every channel), as
     /// [`RgbImage::load`] does.
     ///
     /// # Errors
@@ -191,6 +232,14 @@ impl RgbImage {
             .map_err(|e| e.to_string())?;
         for header in &meta.headers {
             check_size(header.layer_size.width(), header.layer_size.height())?;
+        }
+        let named = |name: &str| {
+            meta.headers
+                .iter()
+                .any(|h| h.channels.list.iter().any(|c| c.name.to_string() == name))
+        };
+        if !named("R") && !named("G") && !named("B") && named("Y") {
+            return Self::from_luminance_exr_bytes(bytes);
         }
         let image = read()
             .no_deep_data()
@@ -205,6 +254,36 @@ impl RgbImage {
                     let i = position.y() * image.width + position.x();
                     if let Some(p) = image.pixels.get_mut(i) {
                         *p = DVec3::new(r.into(), g.into(), b.into());
+                    }
+                },
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(std::io::Cursor::new(bytes))
+            .map_err(|e| e.to_string())?;
+        let pixels = image.layer_data.channel_data.pixels;
+        Self::checked(pixels.width, pixels.height, pixels.pixels)
+    }
+
+    /// Decodes a grey OpenEXR file (a luminance channel `Y` and no R, G, B) as an image whose
+    /// three channels are Y, the first layer that has it.
+    fn from_luminance_exr_bytes(bytes: &[u8]) -> Result<Self, String> {
+        use exr::prelude::*;
+        let image = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .specific_channels()
+            .required("Y")
+            .collect_pixels(
+                |resolution, _| {
+                    let (w, h) = (resolution.width(), resolution.height());
+                    RgbImage::filled(w, h, DVec3::ZERO)
+                },
+                |image: &mut RgbImage, position, (y,): (f32,)| {
+                    let i = position.y() * image.width + position.x();
+                    if let Some(p) = image.pixels.get_mut(i) {
+                        *p = DVec3::splat(y.into());
                     }
                 },
             )
@@ -625,6 +704,67 @@ mod tests {
                 .contains("unknown image format")
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A grey EXR of one `Y` channel loads with Y in every channel (it was refused for lacking
+    /// R, G and B).
+    #[test]
+    fn luminance_exr_files_load_as_grey() {
+        use exr::prelude::*;
+        let pixels = SpecificChannels::build()
+            .with_channel("Y")
+            .with_pixel_fn(|p: Vec2<usize>| (p.x() as f32 * 0.25 + p.y() as f32,));
+        let mut bytes = Vec::new();
+        Image::from_channels((3, 2), pixels)
+            .write()
+            .to_buffered(std::io::Cursor::new(&mut bytes))
+            .unwrap();
+        let image = RgbImage::from_exr_bytes(&bytes).unwrap();
+        assert_eq!((image.width, image.height), (3, 2));
+        for (i, p) in image.pixels.iter().enumerate() {
+            let y = (i % 3) as f64 * 0.25 + (i / 3) as f64;
+            assert_eq!(*p, DVec3::splat(y), "pixel {i}");
+        }
+    }
+
+    /// A palette PNG whose pixel indexes past its palette is refused naming the pixel (it
+    /// loaded as black); indices within the palette load, at every bit depth.
+    #[test]
+    fn palette_indices_beyond_the_palette_are_refused() {
+        let encode = |depth: png::BitDepth, palette: &[u8], rows: &[u8]| {
+            let mut bytes = Vec::new();
+            let mut encoder = png::Encoder::new(&mut bytes, 4, 2);
+            encoder.set_color(png::ColorType::Indexed);
+            encoder.set_depth(depth);
+            encoder.set_palette(palette.to_vec());
+            encoder
+                .write_header()
+                .unwrap()
+                .write_image_data(rows)
+                .unwrap();
+            bytes
+        };
+        let palette = [0, 0, 0, 255, 255, 255];
+        // 8 bits: one byte a pixel; index 2 at pixel (1, 1).
+        let good = encode(png::BitDepth::Eight, &palette, &[0, 1, 1, 0, 1, 0, 0, 1]);
+        let image = RgbImage::from_png_bytes(&good).unwrap();
+        assert_eq!(image.pixels[1], DVec3::ONE);
+        let bad = encode(png::BitDepth::Eight, &palette, &[0, 1, 1, 0, 1, 2, 0, 1]);
+        let message = RgbImage::from_png_bytes(&bad).unwrap_err();
+        assert!(
+            message.contains("pixel (1, 1) is palette index 2"),
+            "{message}"
+        );
+        // 2 bits: four pixels a byte, the first in the high bits; index 3 at pixel (2, 0).
+        let bad = encode(png::BitDepth::Two, &palette, &[0b0001_1100, 0b0100_0001]);
+        let message = RgbImage::from_png_bytes(&bad).unwrap_err();
+        assert!(
+            message.contains("pixel (2, 0) is palette index 3"),
+            "{message}"
+        );
+        let good = encode(png::BitDepth::Two, &palette, &[0b0001_0100, 0b0100_0001]);
+        let image = RgbImage::from_png_bytes(&good).unwrap();
+        assert_eq!(image.pixels[1], DVec3::ONE);
     }
 
     /// An image's size is checked against the limits from its header, before its pixels are

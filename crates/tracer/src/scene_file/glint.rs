@@ -34,9 +34,10 @@ pub(super) struct GlintSection {
     /// Required unless `alpha_texture` gives α instead.
     alpha: Option<Roughness>,
     particles: f64,
-    /// The cone radius γ in degrees; `gamma`, its older name, is still read (deprecated).
-    #[serde(alias = "gamma")]
-    gamma_degrees: f64,
+    /// The cone radius γ in degrees (required).
+    gamma_degrees: Option<f64>,
+    /// `gamma_degrees`'s older name, still read (deprecated); both at once are an error.
+    gamma: Option<f64>,
     epsilon: Option<f64>,
     seed: Option<u64>,
     fresnel: Option<FresnelSection>,
@@ -122,16 +123,32 @@ impl Builder<'_> {
         parameters.particles = g.particles as u64;
         // glint-brdf's range, [10⁻⁶ rad, 60°].
         let smallest = 1e-6f64.to_degrees();
-        if !(g.gamma_degrees >= smallest && g.gamma_degrees <= 60.0) {
+        let gamma_degrees = match (g.gamma_degrees, g.gamma) {
+            (Some(gamma), None) | (None, Some(gamma)) => gamma,
+            (Some(_), Some(_)) => {
+                return self.fail(
+                    format!("{field}.gamma_degrees"),
+                    "give the cone radius once: `gamma` is the older name of `gamma_degrees`"
+                        .to_owned(),
+                );
+            }
+            (None, None) => {
+                return self.fail(
+                    format!("{field}.gamma_degrees"),
+                    "missing: the cone radius in degrees (for example 1)".to_owned(),
+                );
+            }
+        };
+        if !(gamma_degrees >= smallest && gamma_degrees <= 60.0) {
             return self.fail(
                 format!("{field}.gamma_degrees"),
                 format!(
                     "the cone radius must be in [{smallest:.3e}°, 60°] (10⁻⁶ rad to 60°), got {}°",
-                    shown(g.gamma_degrees)
+                    shown(gamma_degrees)
                 ),
             );
         }
-        parameters.gamma_radians = g.gamma_degrees.to_radians();
+        parameters.gamma_radians = gamma_degrees.to_radians();
         if let Some(epsilon) = g.epsilon {
             parameters.epsilon = epsilon;
         }

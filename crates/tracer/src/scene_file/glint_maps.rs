@@ -203,6 +203,34 @@ power = 10
         }
     }
 
+    /// `gamma`, the older name, beside `gamma_degrees` is an error saying so (it read
+    /// "duplicate field `gamma_degrees`"); a grey EXR map (one `Y` channel) loads as data;
+    /// one roughness level for a map of two values is an error naming `roughness_levels`.
+    #[test]
+    fn named_errors_and_grey_exr_maps() {
+        let dir = folder("named");
+        let (field, problem) = error_of(&dir, "alpha = 0.2\ngamma = 2");
+        assert!(field.ends_with("sparkle.gamma_degrees"), "{field}");
+        assert!(problem.contains("`gamma` is the older name"), "{problem}");
+        {
+            use exr::prelude::*;
+            let pixels = SpecificChannels::build()
+                .with_channel("Y")
+                .with_pixel_fn(|p: Vec2<usize>| (if p.x() == 0 { 0.25_f32 } else { 1.0 },));
+            Image::from_channels((2, 1), pixels)
+                .write()
+                .to_file(dir.join("d.exr"))
+                .unwrap();
+        }
+        let scene = load(&dir, "alpha = 0.2\ndensity_texture = \"d.exr\"").unwrap();
+        let density = glint(&scene).brdf.parameters().density_map.clone().unwrap();
+        assert_eq!((density.texel(0, 0), density.texel(1, 0)), (0.25, 1.0));
+        write_data(&dir, "a.png", &grey(2, &[13.0 / 255.0, 64.0 / 255.0]));
+        let (field, problem) = error_of(&dir, "alpha_texture = \"a.png\"\nroughness_levels = 1");
+        assert!(problem.contains("roughness_levels"), "{field}: {problem}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     /// Density and roughness PNGs are read as linear data (a value of 102 is 102/255, not its
     /// sRGB decoding), the tint PNG as sRGB colour; the maps keep the image's rows (row 0 at
     /// the top, v near 1) and are listed among the scene's assets.
