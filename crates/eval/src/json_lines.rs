@@ -8,6 +8,7 @@ use serde_json::{Map, Value, json};
 
 use crate::material::{MaterialSpec, known_fields, numbers_in};
 use crate::request::{EvalMaterial, uniforms_from_three};
+use crate::strict_json;
 
 /// How many built materials [`JsonLines`] keeps at most. Beyond it, or beyond
 /// [`MATERIAL_CACHE_BYTES`], the least recently used material is dropped and rebuilt (a few ms,
@@ -76,8 +77,7 @@ impl JsonLines {
     /// # Errors
     /// The message of `docs/eval.md`'s `{"error": ...}` answer (without the line number).
     pub fn answer(&mut self, line: &str) -> Result<Value, String> {
-        let request: Value =
-            serde_json::from_str(line).map_err(|e| format!("invalid JSON: {e}"))?;
+        let request = strict_json::parse(line).map_err(|e| format!("invalid JSON: {e}"))?;
         let request = request
             .as_object()
             .ok_or("a request must be a JSON object")?;

@@ -38,6 +38,7 @@ mod json_lines;
 mod maps;
 mod material;
 mod request;
+mod strict_json;
 
 pub use json_lines::{JsonLines, MATERIAL_CACHE_BYTES, MATERIAL_CACHE_SIZE};
 pub use maps::{MapSpec, MapsSpec};
