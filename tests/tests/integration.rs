@@ -6,6 +6,7 @@ mod brdf;
 mod density_maps;
 mod footprints;
 mod light_cones;
+mod map_properties;
 mod sphere;
 mod stability;
 mod surface_maps;
