@@ -56,14 +56,24 @@ impl CountTree {
             if let Some(triangle) = self.final_cell(&cell) {
                 // L lies within its circumscribed cap: centre c (the centroid's direction),
                 // radius r (the farthest vertex), so θ over L is within [θ_c − r, θ_c + r].
+                // Their cosines without an angle: cos(θ_c ∓ r) = cos θ_c cos r ± sin θ_c sin r,
+                // and θ_c − r < 0 exactly when cos r < cos θ_c (both angles in [0, π]).
                 let centre = triangle.centroid().normalize();
-                let radius = triangle
+                let cos_radius = triangle
                     .vertices()
                     .iter()
-                    .map(|v| centre.dot(*v).clamp(-1.0, 1.0).acos())
-                    .fold(0.0, f64::max);
-                let theta = centre.z.clamp(-1.0, 1.0).acos();
-                let bound = density_bound((theta - radius).max(0.0).cos(), (theta + radius).cos());
+                    .map(|v| centre.dot(*v).clamp(-1.0, 1.0))
+                    .fold(1.0, f64::min);
+                let sin_radius = (1.0 - cos_radius * cos_radius).max(0.0).sqrt();
+                let cos_theta = centre.z.clamp(-1.0, 1.0);
+                let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+                let cos_near = if cos_radius < cos_theta {
+                    1.0
+                } else {
+                    (cos_theta * cos_radius + sin_theta * sin_radius).min(1.0)
+                };
+                let cos_far = (cos_theta * cos_radius - sin_theta * sin_radius).max(-1.0);
+                let bound = density_bound(cos_near, cos_far);
                 if bound > 0.0 {
                     let ratio = probability / (triangle.solid_angle() * bound);
                     excess.ratio = excess.ratio.max(ratio);
