@@ -41,6 +41,7 @@ import argparse
 import asyncio
 import collections
 import errno
+import gc
 import hashlib
 import itertools
 import json
@@ -616,14 +617,22 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
         own_client = client is None
         if own_client:
             if scheduler is not None:
+                problem = None
                 try:
                     client = Client(scheduler)
                 except ValueError as error:
-                    raise ValueError(f"scheduler {scheduler!r} is not a Dask scheduler address "
-                                     f"(tcp://HOST:PORT): {error}") from error
+                    problem = ValueError(f"scheduler {scheduler!r} is not a Dask scheduler "
+                                         f"address (tcp://HOST:PORT): {error}")
                 except OSError as error:
-                    raise OSError(f"cannot reach the Dask scheduler at {scheduler!r}: {error}"
-                                  ) from error
+                    problem = OSError(f"cannot reach the Dask scheduler at {scheduler!r}: "
+                                      f"{error}")
+                if problem is not None:
+                    # The Client that failed is left in reference cycles (its traceback's
+                    # frames); collected at some later time, its __del__ can deadlock inside
+                    # the start of another Client in this process (both take distributed's
+                    # event-loop lock). Collected here, once the except block let it go.
+                    gc.collect()
+                    raise problem
             else:
                 count = 2 if workers is None else workers
                 if threads is None:
