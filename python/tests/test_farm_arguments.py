@@ -14,6 +14,7 @@ import pytest
 from test_render import SCENE, _scene
 
 pytest.importorskip("distributed")
+pytest.importorskip("hypothesis")  # the package's test extra
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
