@@ -361,6 +361,35 @@ fn interpolated_levels_keep_the_maps_extremes() {
     }
 }
 
+/// α values a few ulps apart share their logarithm: they get one level holding every flake,
+/// the density map kept (the hat weights were 0/0 = NaN, which the clamp to 1 turned into a
+/// density of 1 everywhere).
+#[test]
+fn alphas_sharing_their_logarithm_get_one_level() {
+    let a = 1e-4_f64;
+    let next = |x: f64| f64::from_bits(x.to_bits() + 1);
+    let values = [a, next(a), next(next(a)), a];
+    assert_eq!(values[0].ln(), values[2].ln());
+    let mut parameters = GlintParameters::new(beckmann(0.2));
+    parameters.roughness_levels = 2;
+    parameters.alpha_map = Some(Arc::new(RoughnessMap::new(2, 2, &values).unwrap()));
+    parameters.density_map = Some(Arc::new(
+        DensityMap::new(2, 2, &[0.0, 0.5, 1.0, 0.25]).unwrap(),
+    ));
+    let brdf = DiscreteBrdf::new(parameters).unwrap();
+    let levels: Vec<_> = brdf.level_trees().collect();
+    assert_eq!(levels.len(), 1);
+    assert_eq!(levels[0].0, Some(a));
+    let map = levels[0].1.density_map().unwrap();
+    let texels = [
+        map.texel(0, 0),
+        map.texel(1, 0),
+        map.texel(0, 1),
+        map.texel(1, 1),
+    ];
+    assert_eq!(texels, [0.0, 0.5, 1.0, 0.25]);
+}
+
 /// Under maps the negligible-query bound uses the largest density over the footprint: it
 /// stays above the expected count N·∫_A d·∫p of every level, and a footprint in a masked
 /// region is skipped without a traversal.

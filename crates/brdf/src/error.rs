@@ -90,7 +90,7 @@ pub enum BrdfError {
         distinct: usize,
     },
     /// The material's maps would hold more than [`crate::MAX_MAP_BYTES`] (see
-    /// [`crate::map_budget`]); nothing was allocated.
+    /// [`crate::map_budget`]); nothing beyond the maps given was allocated.
     MapsTooLarge {
         /// What they would hold.
         bytes: crate::MapBytes,
@@ -174,20 +174,37 @@ impl fmt::Display for BrdfError {
             ),
             Self::MapsTooLarge { bytes } => {
                 let gb = |b: u64| format!("{:.2} GB", b as f64 / 1e9);
-                write!(f, "the material's maps would hold {}", gb(bytes.total()))?;
+                write!(
+                    f,
+                    "the material's maps would hold {}: {} in the maps given",
+                    gb(bytes.total()),
+                    gb(bytes.given)
+                )?;
                 if let Some((width, height, levels)) = bytes.roughness {
                     write!(
                         f,
-                        " (alpha_map {width} x {height} texels at roughness_levels = {levels}: \
-                         {} level maps, {})",
+                        ", {} in {} level maps (alpha_map {width} x {height} texels at \
+                         roughness_levels = {levels})",
+                        gb(bytes.levels),
                         bytes.level_maps,
-                        gb(bytes.levels)
                     )?;
                 }
+                if bytes.weighted_tint > 0 {
+                    write!(
+                        f,
+                        ", {} in the density-weighted tint",
+                        gb(bytes.weighted_tint)
+                    )?;
+                }
+                let advice = if bytes.levels > bytes.given + bytes.weighted_tint {
+                    "lower roughness_levels or the maps' resolution"
+                } else {
+                    "lower the maps' resolution (a tint map costs about 186 bytes a texel with \
+                     a density map of its size, a density or roughness level map about 27)"
+                };
                 write!(
                     f,
-                    ", more than the {} a material may hold: lower roughness_levels or the maps' \
-                     resolution",
+                    "; a material may hold {}: {advice}",
                     gb(crate::MAX_MAP_BYTES)
                 )
             }

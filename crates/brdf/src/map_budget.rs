@@ -132,7 +132,7 @@ mod tests {
     /// built, naming the bytes, the levels and the map's size; fewer levels pass.
     #[test]
     fn a_material_over_the_budget_is_refused_before_building() {
-        // 4096² texels of two values: the levels' maps need 2 × 453 MB, 64 of them 29 GB.
+        // 4096² texels of 97 values: each level map needs 447 MB, 64 of them 29 GB.
         let (width, height) = (4096, 4096);
         let alphas: Vec<f64> = (0..width * height)
             .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
@@ -158,6 +158,19 @@ mod tests {
         ] {
             assert!(message.contains(part), "{message:?} lacks {part:?}");
         }
+        // The advice follows what costs most: levels, or the maps given and the tint's weights.
+        let tinted = BrdfError::MapsTooLarge {
+            bytes: MapBytes {
+                given: 2_600_000_000,
+                levels: 900_000_000,
+                level_maps: 2,
+                roughness: Some((4096, 4096, 2)),
+                weighted_tint: 1_300_000_000,
+            },
+        };
+        let message = tinted.to_string();
+        assert!(message.contains("a tint map costs"), "{message}");
+        assert!(!error.to_string().contains("a tint map costs"));
         // Without a density map 9 levels (4.16 GB) fit and 10 (4.61 GB) do not.
         assert!(MapBytes::of(&material(9)).unwrap().check().is_ok());
         assert!(MapBytes::of(&material(10)).unwrap().check().is_err());

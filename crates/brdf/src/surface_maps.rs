@@ -303,9 +303,18 @@ pub(crate) fn level_alphas(
     if !(1..=MAX_ROUGHNESS_LEVELS).contains(&levels) {
         return Err(BrdfError::InvalidRoughnessLevels { levels });
     }
-    let mut distinct: Vec<f64> = alpha.values.clone();
-    distinct.sort_by(f64::total_cmp);
-    distinct.dedup();
+    // The map's distinct values while there are at most `levels` + 1 of them (kept sorted),
+    // and its extremes: one pass, no copy of the map.
+    let mut distinct: Vec<f64> = Vec::with_capacity(levels + 1);
+    let (mut least, mut greatest) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &a in &alpha.values {
+        (least, greatest) = (least.min(a), greatest.max(a));
+        if distinct.len() <= levels
+            && let Err(at) = distinct.binary_search_by(|x| x.total_cmp(&a))
+        {
+            distinct.insert(at, a);
+        }
+    }
     if distinct.len() <= levels {
         return Ok((distinct, true));
     }
@@ -314,8 +323,11 @@ pub(crate) fn level_alphas(
             distinct: distinct.len(),
         });
     }
-    let (least, greatest) = (distinct[0], distinct[distinct.len() - 1]);
     let (low, high) = (least.ln(), greatest.ln());
+    if !(high > low) {
+        // Values a few ulps apart near 10⁻⁴ share their logarithm: one level holds them all.
+        return Ok((vec![least], false));
+    }
     let interpolated = (0..levels)
         .map(|k| match k {
             0 => least,
@@ -361,15 +373,31 @@ pub(crate) fn roughness_levels(
     }
     let d = |k: usize| density.map_or(1.0, |map| map.texel(k % width, k / width));
     let (alphas, exact) = level_alphas(alpha, levels)?;
-    // Texel k's weight on level `level`: 1 on its own α where exact, else the hat function of
-    // log α centred on the level (non-zero on two adjacent levels at most).
-    let (low, high) = (alphas[0].ln(), alphas[alphas.len() - 1].ln());
+    // Texel k's weights: 1 on its own α where exact, else the hat functions of log α centred
+    // on the levels (non-zero on the two levels around its position, at most).
     let last = alphas.len() - 1;
-    let weight = |a: f64, level: usize| -> f64 {
+    let positions: Vec<f64> = if exact || last == 0 {
+        Vec::new()
+    } else {
+        let (low, high) = (alphas[0].ln(), alphas[last].ln());
+        alpha
+            .values
+            .iter()
+            .map(|a| ((a.ln() - low) / (high - low) * last as f64).clamp(0.0, last as f64))
+            .collect()
+    };
+    let weight = |k: usize, level: usize| -> f64 {
         if exact {
-            return if a == alphas[level] { 1.0 } else { 0.0 };
+            return if alpha.values[k] == alphas[level] {
+                1.0
+            } else {
+                0.0
+            };
         }
-        let position = ((a.ln() - low) / (high - low) * last as f64).clamp(0.0, last as f64);
+        if last == 0 {
+            return 1.0;
+        }
+        let position = positions[k];
         let below = (position.floor() as usize).min(last - 1);
         let above = position - below as f64;
         match level {
@@ -380,11 +408,9 @@ pub(crate) fn roughness_levels(
     };
     let mut result = Vec::new();
     for (level, &level_alpha) in alphas.iter().enumerate() {
-        let values: Vec<f64> = alpha
-            .values
-            .iter()
-            .enumerate()
-            .map(|(k, &a)| (d(k) * weight(a, level)).min(1.0))
+        // d·w ≤ 1 (both are); the clamp only absorbs rounding.
+        let values: Vec<f64> = (0..width * height)
+            .map(|k| (d(k) * weight(k, level)).clamp(0.0, 1.0))
             .collect();
         match DensityMap::new(width, height, &values) {
             Ok(map) => result.push(RoughnessLevel {

@@ -369,8 +369,9 @@ extern "C" {
 /**
  * Fills `*params` with the defaults of glint-brdf's `GlintParameters::new` around Beckmann
  * α = 0.1: N = 1e6, γ = 1°, ε = 0.1, seed 0, no Fresnel term, exact multinomials, an
- * expected footprint of 1e-6, 64 pdf points, a negligible count of 1e-12 (glint-tracer's and
- * `eval`'s: queries provably below it answer 0 untraversed).
+ * expected footprint of 1e-6, 64 pdf points; and a negligible count of 1e-12, glint-tracer's
+ * and `eval`'s, where `GlintParameters::new` has 0 (queries provably below it answer 0
+ * untraversed).
  *
  * # Safety
  * `params` is NULL or points to writable memory for a `GlintMaterialParams`.

@@ -78,8 +78,9 @@ pub use crate::types::{
 
 /// Fills `*params` with the defaults of glint-brdf's `GlintParameters::new` around Beckmann
 /// α = 0.1: N = 1e6, γ = 1°, ε = 0.1, seed 0, no Fresnel term, exact multinomials, an
-/// expected footprint of 1e-6, 64 pdf points, a negligible count of 1e-12 (glint-tracer's and
-/// `eval`'s: queries provably below it answer 0 untraversed).
+/// expected footprint of 1e-6, 64 pdf points; and a negligible count of 1e-12, glint-tracer's
+/// and `eval`'s, where `GlintParameters::new` has 0 (queries provably below it answer 0
+/// untraversed).
 ///
 /// # Safety
 /// `params` is NULL or points to writable memory for a `GlintMaterialParams`.
@@ -771,9 +772,10 @@ fn field_of(error: glint_brdf::BrdfError, p: &GlintMaterialParams) -> &'static s
             "expected_footprint_area"
         }
         E::Tree(TreeError::ParticleCountOutOfRange { .. }) => "particles",
-        E::InvalidRoughnessLevels { .. }
-        | E::TooFewRoughnessLevels { .. }
-        | E::MapsTooLarge { .. } => "roughness_levels",
+        E::InvalidRoughnessLevels { .. } | E::TooFewRoughnessLevels { .. } => "roughness_levels",
+        E::MapsTooLarge { bytes } if bytes.levels > bytes.given + bytes.weighted_tint => {
+            "roughness_levels"
+        }
         E::MapSizesDiffer { .. } => "alpha_map",
         _ => "params",
     }

@@ -66,7 +66,10 @@ impl JsonLines {
         self.materials.len()
     }
 
-    /// The estimated memory of the cached materials (at most [`MATERIAL_CACHE_BYTES`]).
+    /// The memory of the cached materials ([`material_bytes`]): at most
+    /// [`MATERIAL_CACHE_BYTES`], or one material's when that one alone is larger. A new
+    /// material is built before older ones make room for it, so while it is built the
+    /// process holds the cache and it.
     #[must_use]
     pub fn cached_bytes(&self) -> usize {
         self.materials.values().map(|c| c.bytes).sum()
@@ -189,7 +192,9 @@ fn cached<'a>(
         let built = MaterialSpec::from_json(material)?.build()?;
         let bytes = material_bytes(&built);
         let mut total: usize = materials.values().map(|c| c.bytes).sum();
-        while materials.len() >= MATERIAL_CACHE_SIZE || total + bytes > MATERIAL_CACHE_BYTES {
+        while materials.len() >= MATERIAL_CACHE_SIZE
+            || total.saturating_add(bytes) > MATERIAL_CACHE_BYTES
+        {
             let Some(oldest) = materials
                 .iter()
                 .min_by_key(|(_, c)| c.used)

@@ -239,6 +239,11 @@ impl RgbImage {
                 .any(|h| h.channels.list.iter().any(|c| c.name.to_string() == name))
         };
         if !named("R") && !named("G") && !named("B") && named("Y") {
+            if named("RY") || named("BY") {
+                return Err(
+                    "a luminance-chroma EXR (Y, RY, BY) is not read: save it as RGB".into(),
+                );
+            }
             return Self::from_luminance_exr_bytes(bytes);
         }
         let image = read()
