@@ -54,7 +54,8 @@ def render(scene, *, frame=None, pixel_bounds=None, resolution=None, spp=None, t
             raise ValueError(f"resolution must be (width, height), not {resolution!r}")
         resolution = tuple(_whole("resolution", v, 1, 16384) for v in resolution)
     if spp is not None:
-        spp = _whole("spp", spp, 1, 2**32 - 1)
+        # glint-tracer's MAX_SAMPLES_PER_PIXEL (the Sobol sequence's length).
+        spp = _whole("spp", spp, 1, 2**16)
     if threads is not None:
         threads = _whole("threads", threads, 1, 4096)
     image, stats = _glint.render_scene(path, frame, pixel_bounds, resolution, spp, threads,
