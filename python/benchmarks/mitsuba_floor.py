@@ -22,7 +22,8 @@ import mitsuba as mi
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--variant", default="llvm_ad_rgb")
-    parser.add_argument("--integrator", default="glint_direct")
+    parser.add_argument("--integrator", choices=["glint_direct", "glint_path"],
+                        default="glint_direct")
     parser.add_argument("--resolution", default="160x90")
     parser.add_argument("--spp", type=int, default=8)
     parser.add_argument("--pairs", type=int, default=3)

@@ -1,15 +1,15 @@
 """Render the sphere-lights scene (scenes/sphere_lights.toml, small) with Mitsuba 3 and glint.
 
     python python/mitsuba/render_sphere_lights.py [--variant scalar_rgb|llvm_ad_rgb]
-        [--integrator direct|path] [--spp N] [--resolution WxH] [--out FILE]
+        [--integrator glint_direct|glint_path] [--spp N] [--resolution WxH] [--out FILE]
 
 FILE ends in .png (exposure −2.5 stops, as the scene file; sRGB) or .exr (linear). In
 ``scalar_rgb`` Mitsuba calls the Python plugins once per sample, so the default is small
 (160×90 at 8 spp: about 20 s); in ``llvm_ad_rgb`` they answer whole wavefronts (about 1 s; it
-needs LLVM 19, see python/README.md). ``--integrator path`` is glint_path (vectorized variants
-only): pixel footprints at the first hit, the smooth limit after. Images are rendered in passes
-of ``--samples-per-pass`` samples per pixel (by default as many as keep a pass within 2²¹
-samples), so memory stays bounded.
+needs LLVM 19, see python/README.md). ``--integrator glint_path`` (vectorized variants only)
+traces paths: pixel footprints at the first hit, the smooth limit after. Images are rendered
+in passes of ``--samples-per-pass`` samples per pixel (by default as many as keep a pass
+within 2²¹ samples), so memory stays bounded.
 """
 
 import argparse
@@ -45,8 +45,9 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (0)")
     parser.add_argument("--variant", choices=["scalar_rgb", "llvm_ad_rgb", "cuda_ad_rgb"],
                         default="scalar_rgb", help="Mitsuba variant (scalar_rgb)")
-    parser.add_argument("--integrator", choices=["direct", "path"], default="direct",
-                        help="glint_direct or glint_path (vectorized variants) (direct)")
+    parser.add_argument("--integrator", choices=["glint_direct", "glint_path"],
+                        default="glint_direct",
+                        help="glint_direct, or glint_path in vectorized variants (glint_direct)")
     parser.add_argument("--samples-per-pass", type=int, default=None,
                         help="samples per pixel per pass, a divisor of --spp (automatic)")
     args = parser.parse_args(argv)
@@ -55,8 +56,8 @@ def main(argv=None):
     if args.samples_per_pass is not None and not (
             1 <= args.samples_per_pass <= args.spp and args.spp % args.samples_per_pass == 0):
         parser.error("--samples-per-pass must be a divisor of --spp")
-    if args.integrator == "path" and args.variant == "scalar_rgb":
-        parser.error("--integrator path needs a vectorized variant (--variant llvm_ad_rgb): "
+    if args.integrator == "glint_path" and args.variant == "scalar_rgb":
+        parser.error("--integrator glint_path needs a vectorized variant (--variant llvm_ad_rgb): "
                      "the scalar plugins have no path integrator")
     if args.variant not in mi.variants():
         parser.error(f"this Mitsuba has no variant {args.variant}")
@@ -68,7 +69,7 @@ def main(argv=None):
 
     scene = mi.load_dict(gm.sphere_lights_scene(args.resolution, args.spp, args.floor,
                                                 sampler_seed=args.seed,
-                                                integrator=f"glint_{args.integrator}"))
+                                                integrator=args.integrator))
     start = time.perf_counter()
     image = gm.render(scene, samples_per_pass=args.samples_per_pass, seed=args.seed)
     seconds = time.perf_counter() - start
@@ -78,7 +79,7 @@ def main(argv=None):
     mi.util.write_bitmap(str(args.out), image)
     w, h = args.resolution
     print(f"{args.out}: {w}x{h}, {args.spp} spp, {args.floor} floor, {args.variant}, "
-          f"glint_{args.integrator}, {seconds:.1f} s")
+          f"{args.integrator}, {seconds:.1f} s")
 
 
 if __name__ == "__main__":

@@ -368,7 +368,7 @@ def test_plugins_refuse_bad_parameters_naming_them(plugins, plugin, name, value)
 def test_render_script_runs_in_the_llvm_variant(tmp_path):
     out = tmp_path / "lights.exr"
     run = subprocess.run([sys.executable, str(EXAMPLE / "render_sphere_lights.py"),
-                          "--variant", VARIANT, "--integrator", "path", "--resolution", "16x9",
+                          "--variant", VARIANT, "--integrator", "glint_path", "--resolution", "16x9",
                           "--spp", "2", "--samples-per-pass", "1", "--out", str(out)],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
