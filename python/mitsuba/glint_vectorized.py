@@ -67,7 +67,10 @@ def material_parameters(props):
         gamma_degrees=get("gamma_degrees", None), gamma_deg=get("gamma_deg", None),
         epsilon=get("epsilon", 0.1), seed=get("seed", 0),
         multinomial=get("multinomial", "exact"),
-        negligible_count=get("negligible_count", 1e-12))
+        negligible_count=get("negligible_count", 1e-12),
+        expected_footprint_area=get("expected_footprint_area", 1e-6),
+        pdf_quadrature=get("pdf_quadrature", "cubature"), pdf_points=get("pdf_points", 64),
+        roughness_levels=get("roughness_levels", 8))
     return params, uv_scale
 
 
@@ -137,6 +140,19 @@ def register():
              - float
              - 1e-12
              - skip queries provably below this expected count (0: never)
+           * - expected_footprint_area
+             - float
+             - 1e-6
+             - the footprint area the tree's shape plans for (Eq. 11)
+           * - pdf_quadrature, pdf_points
+             - string, int
+             - cubature, 64
+             - the sampler pdf's rule; here ``cubature`` only (its pdf runs in Dr.Jit), the
+               scalar plugin also takes ``qmc`` over ``pdf_points``
+           * - roughness_levels
+             - int
+             - 8
+             - as ``glint.Material`` (Mitsuba has no maps yet, so it changes nothing)
            * - uv_scale
              - float
              - 1

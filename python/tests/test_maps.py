@@ -106,3 +106,33 @@ def test_materials_with_maps_pickle():
     a, b = m.eval(wi, wo, uv, dx, dy), copy.eval(wi, wo, uv, dx, dy)
     assert _same(a["f_hat"], b["f_hat"]) and _same(a["count"], b["count"])
     assert "density_map=<array (3, 4)>" in repr(m)
+
+
+def test_a_coloured_tint_answers_colours_without_fresnel():
+    """A cyan tint and no Fresnel term: f_hat is (n, 3) with red 0 (it was one number, the
+    red channel's 0); a grey tint keeps one number per row."""
+    wi, wo, uv, dx, dy, _ = _queries(20, seed=3)
+    plain = dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_degrees=5.0)
+    cyan = glint.Material(**plain, tint_map=np.tile([0.0, 1.0, 1.0], (2, 2, 1)))
+    assert not cyan.gray
+    f = cyan.eval(wi, wo, uv, dx, dy)["f_hat"]
+    assert f.shape == (20, 3) and np.all(f[:, 0] == 0) and np.all(f[:, 1] == f[:, 2])
+    assert np.any(f[:, 1] > 0)
+    grey = glint.Material(**plain, tint_map=np.full((2, 2, 3), 0.5))
+    assert grey.gray and grey.eval(wi, wo, uv, dx, dy)["f_hat"].shape == (20,)
+
+
+def test_one_roughness_level_for_a_map_of_several_is_a_value_error():
+    """It panicked (pyo3's PanicException); now a ValueError naming roughness_levels."""
+    with pytest.raises(ValueError, match="roughness_levels"):
+        glint.Material(distribution="beckmann", particles=1e6, gamma_degrees=1.0,
+                       alpha_map=np.array([[0.1, 0.3]]), roughness_levels=1)
+
+
+def test_maps_over_the_memory_bound_are_refused_before_building():
+    """A 2048² roughness map at 64 levels would hold 7.2 GB of level maps: refused at once
+    with a ValueError naming roughness_levels and the bytes (it allocated until it aborted);
+    8 levels build."""
+    alpha = 0.02 + 0.3 * (np.arange(2048 * 2048) % 97).reshape(2048, 2048) / 96.0
+    with pytest.raises(ValueError, match=r"roughness_levels = 64.*GB"):
+        glint.Material(particles=1e6, alpha_map=alpha, roughness_levels=64)

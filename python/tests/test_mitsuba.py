@@ -241,6 +241,28 @@ def test_plugins_refuse_bad_parameters_naming_them(plugin, name, value):
         mi.load_dict({"type": plugin, name: value})
 
 
+def test_the_bsdf_takes_every_documented_material_field():
+    """``expected_footprint_area``, ``pdf_quadrature``, ``pdf_points`` and ``roughness_levels``
+    reach the package (Mitsuba refused them as unreferenced properties): the BSDF answers as
+    the package's material with the same fields, and a bad value is named."""
+    fields = {"expected_footprint_area": 1e-4, "pdf_quadrature": "qmc", "pdf_points": 16,
+              "roughness_levels": 3, "particles": 1e8}
+    bsdf = mi.load_dict({"type": "glint", **fields})
+    reference = glint.Material(**fields)
+    si = mi.SurfaceInteraction3f()
+    si.wi = mi.Vector3f(0.3, 0.0, 0.954)
+    si.uv = mi.Point2f(0.3, 0.4)
+    si.duv_dx, si.duv_dy = mi.Vector2f(3e-3, 0.0), mi.Vector2f(0.0, 3e-3)
+    wo = mi.Vector3f(-0.3, 0.01, 0.954)
+    wi_np, wo_np = np.array(si.wi, dtype=float), np.array(wo, dtype=float)
+    r = reference.eval(wi_np, wo_np, [0.3, 0.4], [3e-3, 0], [0, 3e-3])
+    assert bsdf.brdf(si, wo) == r["f_hat"]
+    assert bsdf.pdf(mi.BSDFContext(), si, wo) == pytest.approx(
+        float(reference.pdf(wi_np, wo_np)), rel=1e-5)
+    with pytest.raises(Exception, match=r"ValueError: \S*pdf_points"):
+        mi.load_dict({"type": "glint", "pdf_points": 0})
+
+
 def test_rows_the_package_refuses_never_become_nan():
     """A footprint the package refuses (edges beyond ±1e15 particle squares: uv_scale = 1e300)
     shades the smooth limit, as glint-tracer does; a direction it refuses shades 0."""
