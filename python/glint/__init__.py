@@ -24,8 +24,10 @@ import numpy as np
 from ._glint import Material as _NativeMaterial
 from ._glint import __version__
 from ._render import render, write_exr, write_png
+from .units import mesh_areas, particles_per_square
 
-__all__ = ["Material", "__version__", "render", "write_exr", "write_png"]
+__all__ = ["Material", "__version__", "mesh_areas", "particles_per_square", "render",
+           "write_exr", "write_png"]
 
 
 def _rows(name, value, width):
