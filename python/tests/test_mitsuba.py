@@ -255,7 +255,9 @@ def test_the_bsdf_takes_every_documented_material_field():
     si.duv_dx, si.duv_dy = mi.Vector2f(3e-3, 0.0), mi.Vector2f(0.0, 3e-3)
     wo = mi.Vector3f(-0.3, 0.01, 0.954)
     wi_np, wo_np = np.array(si.wi, dtype=float), np.array(wo, dtype=float)
-    r = reference.eval(wi_np, wo_np, [0.3, 0.4], [3e-3, 0], [0, 3e-3])
+    # The interaction's float32 uv and partials, as the plugin reads them.
+    uv, dx, dy = (np.array(v, dtype=float) for v in (si.uv, si.duv_dx, si.duv_dy))
+    r = reference.eval(wi_np, wo_np, uv, dx, dy)
     assert bsdf.brdf(si, wo) == r["f_hat"]
     assert bsdf.pdf(mi.BSDFContext(), si, wo) == pytest.approx(
         float(reference.pdf(wi_np, wo_np)), rel=1e-5)
