@@ -232,6 +232,17 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         if args.smooth { ", smooth" } else { "" },
         job.build_seconds
     );
+    let particles: Vec<String> = job
+        .glint_particles()
+        .iter()
+        .map(|(name, n)| {
+            let n: Vec<String> = n.iter().map(|n| format!("{:.3e}", *n as f64)).collect();
+            format!("{name} {}", n.join(" + "))
+        })
+        .collect();
+    if !particles.is_empty() {
+        println!("  flakes per texture square (N): {}", particles.join(", "));
+    }
     for frame in frame_range(args.frames) {
         let bar = if args.quiet {
             ProgressBar::hidden()

@@ -77,6 +77,8 @@ pub struct RenderJob {
     /// Each glint material's planned expected footprint areas (Eq. 11), by name, before
     /// `smooth` removed the glints.
     plans: Vec<(String, Vec<f64>)>,
+    /// Each glint material's N per texture square (of each glint part), by name.
+    particles: Vec<(String, Vec<u64>)>,
 }
 
 impl RenderJob {
@@ -90,12 +92,18 @@ impl RenderJob {
         let start = std::time::Instant::now();
         let mut scene = load_scene(scene_path)?;
         let build_seconds = start.elapsed().as_secs_f64();
-        let plans = scene
-            .material_names
-            .iter()
-            .zip(&scene.materials)
-            .filter(|(_, m)| m.has_glints())
+        let glints = || {
+            scene
+                .material_names
+                .iter()
+                .zip(&scene.materials)
+                .filter(|(_, m)| m.has_glints())
+        };
+        let plans = glints()
             .map(|(name, m)| (name.clone(), m.expected_footprint_areas()))
+            .collect();
+        let particles = glints()
+            .map(|(name, m)| (name.clone(), m.glint_particles()))
             .collect();
         if let Some(count) = options.negligible_count {
             scene
@@ -144,6 +152,7 @@ impl RenderJob {
             build_seconds,
             base_materials,
             plans,
+            particles,
         })
     }
 
@@ -162,6 +171,13 @@ impl RenderJob {
         self.settings = settings;
         self.options.pixel_bounds = bounds;
         Ok(())
+    }
+
+    /// Each glint material's N per texture square (one per glint part), by name: what a
+    /// material given in `flakes_per_mm2` converted to on its shape.
+    #[must_use]
+    pub fn glint_particles(&self) -> &[(String, Vec<u64>)] {
+        &self.particles
     }
 
     /// Renders camera frame `frame`; `progress(done, total)` is called as tiles finish, and
@@ -262,6 +278,9 @@ impl RenderJob {
                 "overlapping_nodes_per_query": c.overlapping_nodes_per_query(),
                 "particles_per_query": c.particles_per_query(),
             })).collect::<Vec<_>>(),
+            "particles_per_square": self.particles.iter()
+                .map(|(name, n)| (name.clone(), serde_json::json!(n)))
+                .collect::<serde_json::Map<_, _>>(),
             "expected_footprint_areas": self.plans.iter()
                 .map(|(name, areas)| (name.clone(), serde_json::json!(areas)))
                 .collect::<serde_json::Map<_, _>>(),

@@ -485,6 +485,20 @@ impl Material {
         }
     }
 
+    /// N, the particles per texture square, of each glint part, in order; empty for materials
+    /// without glints.
+    #[must_use]
+    pub fn glint_particles(&self) -> Vec<u64> {
+        match self {
+            Self::Glint(g) => vec![g.brdf.parameters().particles],
+            Self::Mix(parts) => parts
+                .iter()
+                .flat_map(|(_, m)| m.glint_particles())
+                .collect(),
+            _ => Vec::new(),
+        }
+    }
+
     /// Whether any part of the material is a glint material.
     #[must_use]
     pub fn has_glints(&self) -> bool {

@@ -102,6 +102,26 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// The surface area, and the area the triangles' texture coordinates cover in the uv plane
+    /// (each triangle's whatever its winding; ½ per triangle without coordinates, as shading
+    /// gives each triangle (0,0), (1,0), (1,1)).
+    #[must_use]
+    pub fn surface_and_uv_area(&self) -> (f64, f64) {
+        let (mut surface, mut uv) = (0.0, 0.0);
+        for &[a, b, c] in &self.triangles {
+            let [a, b, c] = [a, b, c].map(|i| i as usize);
+            let p = &self.positions;
+            surface += 0.5 * (p[b] - p[a]).cross(p[c] - p[a]).length();
+            uv += if self.uvs.is_empty() {
+                0.5
+            } else {
+                let t = &self.uvs;
+                0.5 * (t[b] - t[a]).perp_dot(t[c] - t[a]).abs()
+            };
+        }
+        (surface, uv)
+    }
+
     /// Loads every model of an OBJ file into one mesh. The file must be a regular file of at
     /// most [`limits::MAX_MESH_FILE_BYTES`]; `mtllib` statements are ignored (no other file is
     /// opened).

@@ -69,6 +69,8 @@ pub const SCENE_NEGLIGIBLE_COUNT: f64 = 1e-12;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneFile {
+    /// The length of one scene unit in metres, for glint materials in `flakes_per_mm2`.
+    metres_per_unit: Option<f64>,
     render: Option<toml::Value>,
     camera: toml::Value,
     #[serde(default)]
@@ -85,7 +87,11 @@ impl Builder<'_> {
         let camera = self.camera(file.camera)?;
         // Materials by name, in name order; only those used are built (a glint material builds
         // its NDF quadrature).
-        let mut used = UsedMaterials::new(&file.materials);
+        let metres_per_unit = match file.metres_per_unit {
+            Some(metres) => Some(self.positive("metres_per_unit", metres)?),
+            None => None,
+        };
+        let mut used = UsedMaterials::new(&file.materials, metres_per_unit);
         let mut primitives = Vec::new();
         let mut meshes = Vec::new();
         self.shapes(file.shapes, &mut used, &mut primitives, &mut meshes)?;
@@ -204,6 +210,123 @@ power = 10
             }
             Err(other) => panic!("expected a scene error, got {other}"),
             Ok(_) => panic!("expected an error for:\n{text}"),
+        }
+    }
+
+    /// `flakes_per_mm2` converts to N per shape, N = ρ·10⁶·metres_per_unit²·S/(uv_scale²·U):
+    /// a sphere and a rectangle using one material get one material each (named after the
+    /// shape), a second sphere of the same radius shares the first's; a material given in
+    /// `particles` stays one; the conversion's errors name the field.
+    #[test]
+    fn flakes_per_mm2_convert_per_shape() {
+        let text = |top: &str, paint: &str| {
+            format!(
+                r#"{top}
+[camera]
+position = [0, 1, 30]
+look_at = [0, 0, 0]
+[materials.paint]
+type = "glint"
+alpha = 0.1
+gamma_degrees = 1
+uv_scale = 2
+{paint}
+[materials.plain]
+type = "glint"
+alpha = 0.1
+gamma_degrees = 1
+particles = 1000
+[[shapes]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 2
+material = "paint"
+[[shapes]]
+type = "rectangle"
+center = [0, -3, 0]
+u = [4, 0, 0]
+v = [0, 0, -3]
+material = "paint"
+[[shapes]]
+type = "sphere"
+center = [5, 0, 0]
+radius = 2
+material = "paint"
+[[shapes]]
+type = "sphere"
+center = [-5, 0, 0]
+radius = 1
+material = "plain"
+[[shapes]]
+type = "sphere"
+center = [-5, 3, 0]
+radius = 3
+material = "plain"
+[[lights]]
+type = "sphere"
+center = [1, 20, 1]
+radius = 1
+power = 10
+"#
+            )
+        };
+        let path = Path::new("scenes/test.toml");
+        // Centimetres; 0.5 flakes per mm² = 50 per cm².
+        let scene = parse_scene(
+            &text("metres_per_unit = 0.01", "flakes_per_mm2 = 0.5"),
+            path,
+        )
+        .unwrap();
+        let particles = |name: &str| {
+            let i = scene.material_names.iter().position(|n| n == name).unwrap();
+            scene.materials[i].glint_particles()
+        };
+        let per_cm2 = 50.0;
+        let sphere = (per_cm2 * 4.0 * std::f64::consts::PI * 4.0 / 4.0).round() as u64;
+        let rectangle = (per_cm2 * 12.0 / 4.0).round() as u64;
+        assert_eq!(particles("paint (shapes[0])"), vec![sphere]);
+        assert_eq!(particles("paint (shapes[1])"), vec![rectangle]);
+        assert_eq!(particles("plain"), vec![1000]);
+        assert_eq!(scene.materials.len(), 3, "{:?}", scene.material_names);
+        let primitives = scene.accelerator.primitives();
+        assert_eq!(primitives[0].material, primitives[2].material);
+        for (top, paint, field, part) in [
+            (
+                "",
+                "flakes_per_mm2 = 0.5",
+                "paint.flakes_per_mm2",
+                "metres_per_unit",
+            ),
+            (
+                "metres_per_unit = 0.01",
+                "flakes_per_mm2 = 0.5\nparticles = 7",
+                "paint.flakes_per_mm2",
+                "not both",
+            ),
+            (
+                "metres_per_unit = 0.01",
+                "",
+                "paint.particles",
+                "flakes_per_mm2",
+            ),
+            (
+                "metres_per_unit = -1",
+                "flakes_per_mm2 = 0.5",
+                "metres_per_unit",
+                "positive",
+            ),
+            (
+                "metres_per_unit = 0.01",
+                "flakes_per_mm2 = 1e-9",
+                "paint.flakes_per_mm2",
+                "outside [1, 2^53]",
+            ),
+        ] {
+            let (f, problem) = error_of(&text(top, paint));
+            assert!(
+                f.ends_with(field) && problem.contains(part),
+                "{f}: {problem}"
+            );
         }
     }
 

@@ -8,7 +8,7 @@ use serde::Deserialize;
 
 use super::SCENE_NEGLIGIBLE_COUNT;
 use super::builder::{Builder, Checked, shown};
-use super::materials::{DistributionName, FresnelSection};
+use super::materials::{DistributionName, FresnelSection, SurfaceScale};
 use super::numbers::Roughness;
 use crate::material::{GlintMaterial, Material};
 
@@ -33,7 +33,10 @@ pub(super) struct GlintSection {
     distribution: DistributionName,
     /// Required unless `alpha_texture` gives α instead.
     alpha: Option<Roughness>,
-    particles: f64,
+    /// N, flakes per texture square; or `flakes_per_mm2` (one of the two).
+    particles: Option<f64>,
+    /// Flakes per mm² of surface, converted per shape (needs the file's `metres_per_unit`).
+    flakes_per_mm2: Option<f64>,
     /// The cone radius γ in degrees (required).
     gamma_degrees: Option<f64>,
     /// `gamma_degrees`'s older name, still read (deprecated); both at once are an error.
@@ -57,7 +60,12 @@ pub(super) struct GlintSection {
 }
 
 impl Builder<'_> {
-    pub(super) fn glint(&self, field: &str, g: &GlintSection) -> Checked<Material> {
+    pub(super) fn glint(
+        &self,
+        field: &str,
+        g: &GlintSection,
+        surface: &SurfaceScale,
+    ) -> Checked<Material> {
         if g.alpha.is_some() && g.alpha_texture.is_some() {
             return self.fail(
                 format!("{field}.alpha"),
@@ -107,20 +115,8 @@ impl Builder<'_> {
             }
             parameters.roughness_levels = levels;
         }
-        // 2⁵³, the count tree's limit: every whole number up to it is a double.
-        if !(g.particles >= 1.0
-            && g.particles <= 9_007_199_254_740_992.0
-            && g.particles.fract() == 0.0)
-        {
-            return self.fail(
-                format!("{field}.particles"),
-                format!(
-                    "must be a whole number in [1, 2^53], got {}",
-                    shown(g.particles)
-                ),
-            );
-        }
-        parameters.particles = g.particles as u64;
+        let uv_scale = self.positive(&format!("{field}.uv_scale"), g.uv_scale.unwrap_or(1.0))?;
+        parameters.particles = self.particles(field, g, surface, uv_scale)?;
         // glint-brdf's range, [10⁻⁶ rad, 60°].
         let smallest = 1e-6f64.to_degrees();
         let gamma_degrees = match (g.gamma_degrees, g.gamma) {
@@ -185,7 +181,6 @@ impl Builder<'_> {
             );
         }
         parameters.negligible_count = negligible_count;
-        let uv_scale = self.positive(&format!("{field}.uv_scale"), g.uv_scale.unwrap_or(1.0))?;
         let brdf = DiscreteBrdf::new(parameters).map_err(|e| match e {
             glint_brdf::BrdfError::MapSizesDiffer { .. } => {
                 self.brdf_error(&format!("{field}.alpha_texture"), &e)
@@ -200,5 +195,82 @@ impl Builder<'_> {
             uv_scale,
             plan_footprint_area: g.expected_footprint_area.is_none(),
         }))
+    }
+
+    /// N of glint section `g`: its `particles`, or its `flakes_per_mm2` converted for the
+    /// shape it is built for, N = ρ·10⁶·metres_per_unit²·(S/U)/uv_scale² (S/U the shape's
+    /// surface area per unit of uv area), rounded: a whole number in [1, 2⁵³].
+    fn particles(
+        &self,
+        field: &str,
+        g: &GlintSection,
+        surface: &SurfaceScale,
+        uv_scale: f64,
+    ) -> Checked<u64> {
+        // 2⁵³, the count tree's limit: every whole number up to it is a double.
+        const MOST: f64 = 9_007_199_254_740_992.0;
+        let density_field = format!("{field}.flakes_per_mm2");
+        let particles = match (g.particles, g.flakes_per_mm2) {
+            (Some(n), None) => n,
+            (Some(_), Some(_)) => {
+                return self.fail(
+                    density_field,
+                    "give `particles` (per texture square) or `flakes_per_mm2`, not both",
+                );
+            }
+            (None, None) => {
+                return self.fail(
+                    format!("{field}.particles"),
+                    "missing: the flakes per texture square (or `flakes_per_mm2` per mm² of \
+                     surface)",
+                );
+            }
+            (None, Some(density)) => {
+                let density = self.positive(&density_field, density)?;
+                let Some(metres) = surface.metres_per_unit else {
+                    return self.fail(
+                        density_field,
+                        "needs the scene's length unit: `metres_per_unit = ...` at the top of \
+                         the file",
+                    );
+                };
+                let Some(ratio) = surface.surface_per_uv else {
+                    return self.fail(
+                        density_field,
+                        format!(
+                            "{}: the shape's texture coordinates cover no area, so flakes per \
+                             mm² cannot be converted (give `particles`)",
+                            surface.shape
+                        ),
+                    );
+                };
+                surface.used.set(true);
+                let n = (density * 1e6 * metres * metres * ratio / (uv_scale * uv_scale)).round();
+                if !(1.0..=MOST).contains(&n) {
+                    return self.fail(
+                        density_field,
+                        format!(
+                            "gives {} flakes per texture square on {}, outside [1, 2^53] \
+                             (surface {} units² per unit of uv area, uv_scale {})",
+                            shown(n),
+                            surface.shape,
+                            shown(ratio),
+                            shown(uv_scale)
+                        ),
+                    );
+                }
+                return Ok(n as u64);
+            }
+        };
+        if !((1.0..=MOST).contains(&particles) && particles.fract() == 0.0) {
+            return self.fail(
+                format!("{field}.particles"),
+                format!(
+                    "must be a whole number in [1, 2^53], got {}",
+                    shown(particles)
+                ),
+            );
+        }
+        Ok(particles as u64)
     }
 }

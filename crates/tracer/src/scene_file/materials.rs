@@ -96,21 +96,44 @@ struct ComponentSection {
 pub(super) struct UsedMaterials<'s> {
     /// Every material section of the file, by name.
     sections: &'s BTreeMap<String, toml::Value>,
-    index: BTreeMap<String, u32>,
+    /// The file's `metres_per_unit`, for glint materials given in `flakes_per_mm2`.
+    metres_per_unit: Option<f64>,
+    /// Built materials by name, and for those built per shape (`flakes_per_mm2`), by the
+    /// shape's surface area per unit of uv area too.
+    index: BTreeMap<(String, Option<u64>), u32>,
     pub(super) materials: Vec<Material>,
     pub(super) names: Vec<String>,
 }
 
 impl<'s> UsedMaterials<'s> {
-    /// None used yet of the material `sections`.
-    pub(super) fn new(sections: &'s BTreeMap<String, toml::Value>) -> Self {
+    /// None used yet of the material `sections`, in a file whose unit is `metres_per_unit`.
+    pub(super) fn new(
+        sections: &'s BTreeMap<String, toml::Value>,
+        metres_per_unit: Option<f64>,
+    ) -> Self {
         Self {
             sections,
+            metres_per_unit,
             index: BTreeMap::new(),
             materials: Vec::new(),
             names: Vec::new(),
         }
     }
+}
+
+/// The shape a material is built for, as a glint material given in flakes per mm² needs it
+/// (`flakes_per_mm2`): the shape's surface area per unit of uv area, S/U, and the scene's unit.
+#[derive(Debug)]
+pub(super) struct SurfaceScale {
+    /// The scene file's `metres_per_unit`.
+    pub(super) metres_per_unit: Option<f64>,
+    /// S/U of the shape (`None` where its texture coordinates cover no area).
+    pub(super) surface_per_uv: Option<f64>,
+    /// The shape, for messages (`shapes[3]`).
+    pub(super) shape: String,
+    /// Set when a glint part converted `flakes_per_mm2` with it: the material is then the
+    /// shape's own.
+    pub(super) used: std::cell::Cell<bool>,
 }
 
 impl Builder<'_> {
@@ -160,21 +183,40 @@ impl Builder<'_> {
         self.checked_fresnel(field, fresnel)
     }
 
-    /// The index of material `name`, used at `field`, built on its first use.
+    /// The index of material `name`, used at `field` by shape `shape` whose surface area per
+    /// unit of uv area is `surface_per_uv`, built on its first use. A material whose glint
+    /// parts give `flakes_per_mm2` is built once per distinct S/U (its N depends on it) and
+    /// named `name (shapes[i])` after the first shape that uses it; any other, once.
     pub(super) fn use_material(
         &self,
         used: &mut UsedMaterials<'_>,
         name: &str,
         field: &str,
+        shape: &str,
+        surface_per_uv: Option<f64>,
     ) -> Checked<u32> {
-        if let Some(&i) = used.index.get(name) {
-            return Ok(i);
+        let ratio_key = surface_per_uv.map(f64::to_bits);
+        for key in [(name.to_string(), None), (name.to_string(), ratio_key)] {
+            if let Some(&i) = used.index.get(&key) {
+                return Ok(i);
+            }
         }
-        let material = self.material(name, field, used.sections, &mut Vec::new())?;
+        let surface = SurfaceScale {
+            metres_per_unit: used.metres_per_unit,
+            surface_per_uv,
+            shape: shape.to_string(),
+            used: std::cell::Cell::new(false),
+        };
+        let material = self.material(name, field, used.sections, &mut Vec::new(), &surface)?;
         used.materials.push(material);
-        used.names.push(name.to_string());
         let i = (used.materials.len() - 1) as u32;
-        used.index.insert(name.to_string(), i);
+        if surface.used.get() {
+            used.names.push(format!("{name} ({shape})"));
+            used.index.insert((name.to_string(), ratio_key), i);
+        } else {
+            used.names.push(name.to_string());
+            used.index.insert((name.to_string(), None), i);
+        }
         Ok(i)
     }
 
@@ -186,6 +228,7 @@ impl Builder<'_> {
         used_at: &str,
         sections: &BTreeMap<String, toml::Value>,
         visiting: &mut Vec<String>,
+        surface: &SurfaceScale,
     ) -> Checked<Material> {
         let Some(section) = sections.get(name) else {
             return self.fail(
@@ -273,7 +316,7 @@ impl Builder<'_> {
             }
             "glint" => {
                 let g: GlintSection = self.section(&field, section)?;
-                self.glint(&field, &g)?
+                self.glint(&field, &g, surface)?
             }
             "mirror" => {
                 let m: MirrorSection = self.section(&field, section)?;
@@ -316,7 +359,7 @@ impl Builder<'_> {
                         );
                     }
                     let used_at = format!("{component}.material");
-                    let part = self.material(&c.material, &used_at, sections, visiting)?;
+                    let part = self.material(&c.material, &used_at, sections, visiting, surface)?;
                     if matches!(part, Material::Mirror(_)) {
                         return self.fail(
                             used_at,

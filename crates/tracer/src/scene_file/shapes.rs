@@ -140,8 +140,15 @@ impl Builder<'_> {
                 "sphere" => {
                     let s: SphereSection = self.section(&field, shape)?;
                     let sphere = self.sphere(&field, s.center, s.radius)?;
-                    let material =
-                        self.use_material(materials, &s.material, &format!("{field}.material"))?;
+                    // (u, v) cover [0, 1]² once.
+                    let surface_per_uv = 4.0 * std::f64::consts::PI * sphere.radius.powi(2);
+                    let material = self.use_material(
+                        materials,
+                        &s.material,
+                        &format!("{field}.material"),
+                        &field,
+                        Some(surface_per_uv).filter(|r| *r > 0.0 && r.is_finite()),
+                    )?;
                     primitives.push(Primitive {
                         geometry: Geometry::Sphere(sphere),
                         material,
@@ -151,8 +158,13 @@ impl Builder<'_> {
                 "rectangle" => {
                     let r: RectangleSection = self.section(&field, shape)?;
                     let rectangle = self.rectangle(&field, r.center, r.u, r.v)?;
-                    let material =
-                        self.use_material(materials, &r.material, &format!("{field}.material"))?;
+                    let material = self.use_material(
+                        materials,
+                        &r.material,
+                        &format!("{field}.material"),
+                        &field,
+                        Some(rectangle.area()).filter(|r| *r > 0.0 && r.is_finite()),
+                    )?;
                     primitives.push(Primitive {
                         geometry: Geometry::Rectangle(rectangle),
                         material,
@@ -161,8 +173,6 @@ impl Builder<'_> {
                 }
                 _ => {
                     let m: MeshSection = self.section(&field, shape)?;
-                    let material =
-                        self.use_material(materials, &m.material, &format!("{field}.material"))?;
                     let transform = self.transform(&format!("{field}.transform"), &m.transform)?;
                     let path = self.asset(&m.file);
                     let file_field = format!("{field}.file");
@@ -180,6 +190,14 @@ impl Builder<'_> {
                         problem: format!("{}: after the transform, {problem}", echo(&m.file)),
                     })?;
                     self.room_for(&file_field, primitives.len(), mesh.triangles.len())?;
+                    let (surface, uv) = mesh.surface_and_uv_area();
+                    let material = self.use_material(
+                        materials,
+                        &m.material,
+                        &format!("{field}.material"),
+                        &field,
+                        Some(surface / uv).filter(|r| *r > 0.0 && r.is_finite()),
+                    )?;
                     let mesh_index = meshes.len() as u32;
                     for t in 0..mesh.triangles.len() as u32 {
                         primitives.push(Primitive {
