@@ -444,7 +444,7 @@ def _frame_summary(frame, parts, identity, resolution, workers, outputs):
     first = parts[0]
     summary = {key: first[key] for key in (
         "scene", "sources", "frame", "resolution", "spp", "smooth", "glint_footprints", "exposure",
-        "bloom", "expected_footprint_areas") if key in first}
+        "bloom", "expected_footprint_areas", "particles_per_square") if key in first}
     summary["pixel_bounds"] = [0, resolution[0], 0, resolution[1]]
     for key in _SUMMED:
         summary[key] = sum(p[key] for p in parts)
