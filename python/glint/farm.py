@@ -419,6 +419,7 @@ def _merged_glint(parts):
         return [sum(column) for column in zip(*sums)]
 
     merged = _glint_means(total(_glint_sums(p) for p in parts))
+    merged.update(_merged_histogram(parts))
     if not all("materials" in p for p in parts):
         return merged
     # Materials in the tiles' order: each name after the one before it in the tile that has it.
@@ -432,9 +433,33 @@ def _merged_glint(parts):
                 names.insert(place, material["name"])
                 place += 1
             by_name[material["name"]].append(_glint_sums(material))
-    merged["materials"] = [{"name": name, **_glint_means(total(by_name[name]))}
-                           for name in names]
+    merged["materials"] = [
+        {"name": name, **_glint_means(total(by_name[name])),
+         **_merged_histogram([m for p in parts for m in p["materials"] if m["name"] == name])}
+        for name in names]
     return merged
+
+
+def _merged_histogram(parts):
+    """The particles-per-query histogram of summaries ``parts`` (each's
+    ``particles_histogram``, pairs of a bin's upper edge and its queries), summed bin by bin,
+    with its 99th-percentile bound computed as the tracer computes it: the upper edge of the
+    bin where the cumulative share reaches 0.99. Empty when a part has no histogram."""
+    if not all("particles_histogram" in p for p in parts):
+        return {}
+    bins = collections.Counter()
+    for part in parts:
+        for edge, queries in part["particles_histogram"]:
+            bins[edge] += queries
+    pairs = sorted(bins.items())
+    total, below, p99 = sum(bins.values()), 0, 0.0
+    for edge, queries in pairs:
+        below += queries
+        if below >= 0.99 * total:
+            p99 = edge
+            break
+    return {"particles_histogram": [list(pair) for pair in pairs],
+            "particles_per_query_p99": p99}
 
 
 def _frame_summary(frame, parts, identity, resolution, workers, outputs):

@@ -143,7 +143,8 @@ def test_frames_listed_twice_and_damaged_outputs(tmp_path, cluster):
         assert [m["name"] for m in farm["materials"]] == [m["name"] for m in whole["materials"]]
         for mine, theirs in zip(farm["materials"] + [farm], whole["materials"] + [whole]):
             for key in ("glint_queries", "negligible_queries", "nodes_per_query",
-                        "overlapping_nodes_per_query"):
+                        "overlapping_nodes_per_query", "particles_histogram",
+                        "particles_per_query_p99"):
                 assert mine[key] == theirs[key], key
             for key in ("particles_per_query", "negligible_bound"):
                 assert mine[key] == pytest.approx(theirs[key], rel=1e-9, abs=1e-300), key

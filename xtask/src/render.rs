@@ -292,11 +292,12 @@ pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
         if s.glint_by_material.len() > 1 {
             for (material, c) in &s.glint_by_material {
                 println!(
-                    "  {material}: {} queries, {:.1} nodes ({:.1} meeting the query) and {:.3} particles per query",
+                    "  {material}: {} queries, {:.1} nodes ({:.1} meeting the query) and {:.3} particles per query (99% at most {:.3})",
                     c.queries,
                     c.nodes_per_query(),
                     c.overlapping_nodes_per_query(),
-                    c.particles_per_query()
+                    c.particles_per_query(),
+                    c.particles_per_query_p99()
                 );
             }
         }

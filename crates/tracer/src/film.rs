@@ -77,7 +77,7 @@ impl std::fmt::Display for RenderStatistics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{:.2} s, {:.2} Mrays/s; {} glint queries ({} skipped as negligible, Σ bound {:.1e}), {:.1} nodes ({:.1} meeting the query) per traversed query, {:.3} particles per query, {:.0} queries/s",
+            "{:.2} s, {:.2} Mrays/s; {} glint queries ({} skipped as negligible, Σ bound {:.1e}), {:.1} nodes ({:.1} meeting the query) per traversed query, {:.3} particles per query (99% at most {:.3}), {:.0} queries/s",
             self.seconds,
             self.rays_per_second() * 1e-6,
             self.glint.queries,
@@ -86,6 +86,7 @@ impl std::fmt::Display for RenderStatistics {
             self.nodes_per_query(),
             self.glint.overlapping_nodes_per_query(),
             self.particles_per_query(),
+            self.glint.particles_per_query_p99(),
             self.queries_per_second()
         )?;
         if self.clamped_samples > 0 || self.discarded_samples > 0 {

@@ -266,6 +266,8 @@ impl RenderJob {
             "nodes_per_query": s.nodes_per_query(),
             "overlapping_nodes_per_query": s.glint.overlapping_nodes_per_query(),
             "particles_per_query": s.particles_per_query(),
+            "particles_per_query_p99": s.glint.particles_per_query_p99(),
+            "particles_histogram": s.glint.particles.nonempty(),
             "queries_per_second": s.queries_per_second(),
             "clamped_samples": s.clamped_samples,
             "discarded_samples": s.discarded_samples,
@@ -277,6 +279,8 @@ impl RenderJob {
                 "nodes_per_query": c.nodes_per_query(),
                 "overlapping_nodes_per_query": c.overlapping_nodes_per_query(),
                 "particles_per_query": c.particles_per_query(),
+                "particles_per_query_p99": c.particles_per_query_p99(),
+                "particles_histogram": c.particles.nonempty(),
             })).collect::<Vec<_>>(),
             "particles_per_square": self.particles.iter()
                 .map(|(name, n)| (name.clone(), serde_json::json!(n)))
@@ -407,6 +411,22 @@ mod tests {
                 .as_f64()
                 .unwrap()
                 > 0.0
+        );
+        // N per texture square, and the particles-per-query histogram: every query in a bin,
+        // the 99% bound one of the bins' edges.
+        assert!(
+            summary["particles_per_square"]["glitter"][0]
+                .as_u64()
+                .unwrap()
+                >= 1
+        );
+        let histogram = summary["particles_histogram"].as_array().unwrap();
+        let binned: u64 = histogram.iter().map(|b| b[1].as_u64().unwrap()).sum();
+        assert_eq!(binned, summary["glint_queries"].as_u64().unwrap());
+        let p99 = summary["particles_per_query_p99"].as_f64().unwrap();
+        assert!(
+            histogram.iter().any(|b| b[0].as_f64() == Some(p99)),
+            "{p99}"
         );
         let dir = path.parent().unwrap();
         let files = ["c.exr", "c.png", "c.json"].map(|f| dir.join(f));

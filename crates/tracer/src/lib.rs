@@ -91,6 +91,7 @@ pub mod light_cone;
 pub mod limits;
 pub mod material;
 pub mod mesh;
+pub mod particle_histogram;
 pub mod plan;
 pub mod sampler;
 pub mod scene;

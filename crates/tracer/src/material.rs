@@ -11,6 +11,7 @@ use glint_brdf::{Bxdf, DiscreteBrdf, Footprint, Fresnel, MicrofacetBrdf, QuerySc
 use std::f64::consts::PI;
 
 use crate::image::RgbImage;
+use crate::particle_histogram::ParticleHistogram;
 
 /// A colour that may vary over the surface.
 #[derive(Clone, Debug, PartialEq)]
@@ -182,6 +183,8 @@ pub struct GlintCounters {
     /// expected number of particles the skipping missed, and on the probability that the image
     /// differs from a render that traverses every query.
     pub negligible_bound: f64,
+    /// The particles each query found (skipped ones found 0), binned.
+    pub particles: ParticleHistogram,
 }
 
 impl GlintCounters {
@@ -193,6 +196,7 @@ impl GlintCounters {
         self.particles_found += other.particles_found;
         self.negligible_queries += other.negligible_queries;
         self.negligible_bound += other.negligible_bound;
+        self.particles.add(&other.particles);
     }
 
     /// Counts one query and what it found.
@@ -201,6 +205,7 @@ impl GlintCounters {
         self.nodes_visited += u64::from(result.nodes_visited);
         self.nodes_overlapping += u64::from(result.nodes_overlapping);
         self.particles_found += result.count;
+        self.particles.record(result.count);
         if let Some(bound) = result.negligible {
             self.negligible_queries += 1;
             self.negligible_bound += bound;
@@ -230,6 +235,13 @@ impl GlintCounters {
     #[must_use]
     pub fn particles_per_query(&self) -> f64 {
         self.particles_found / self.queries.max(1) as f64
+    }
+
+    /// The particles 99% of the queries found at most, to within a factor 2^¼ above
+    /// ([`ParticleHistogram::quantile_bound`]).
+    #[must_use]
+    pub fn particles_per_query_p99(&self) -> f64 {
+        self.particles.quantile_bound(0.99)
     }
 }
 
