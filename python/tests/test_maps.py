@@ -3,6 +3,7 @@ the maps as JSON rows (bit for bit), the layout (row 0 at the top of the texture
 named, and materials with maps that pickle."""
 
 import json
+import math
 import pickle
 
 import numpy as np
@@ -136,3 +137,63 @@ def test_maps_over_the_memory_bound_are_refused_before_building():
     alpha = 0.02 + 0.3 * (np.arange(2048 * 2048) % 97).reshape(2048, 2048) / 96.0
     with pytest.raises(ValueError, match=r"roughness_levels = 64.*GB"):
         glint.Material(particles=1e6, alpha_map=alpha, roughness_levels=64)
+
+
+def _maps_strategy():
+    """Random maps of one size (1–6 × 1–6): densities, roughness and tints in range with their
+    edges, now and then a value out of range or not finite, and roughness levels 0–65."""
+    from hypothesis import strategies as st
+
+    bad = st.sampled_from([-1e-300, 1.0 + 2**-52, math.nan, math.inf, 7.0])
+
+    def texels(values, shape):
+        """A map of ``values``, one in five with one texel replaced by a bad value."""
+        size = int(np.prod(shape))
+
+        def build(drawn):
+            values, corrupt = drawn
+            array = np.array(values, dtype=float)
+            if corrupt is not None:
+                array[corrupt[0] % size] = corrupt[1]
+            return array.reshape(shape)
+
+        corrupt = st.one_of(*[st.none()] * 4, st.tuples(st.integers(0, size - 1), bad))
+        return st.tuples(st.lists(values, min_size=size, max_size=size), corrupt).map(build)
+
+    unit = st.one_of(st.floats(0.0, 1.0), st.sampled_from([0.0, 1.0, 1e-10, 2.0**-33]))
+    rough = st.one_of(st.sampled_from([0.05, 0.2, 1e-4, 1.0]), st.floats(1e-4, 1.0))
+    return st.tuples(st.integers(1, 6), st.integers(1, 6)).flatmap(lambda hw: st.fixed_dictionaries({
+        "density_map": st.none() | texels(unit, hw),
+        "alpha_map": st.none() | texels(rough, hw),
+        "tint_map": st.none() | texels(unit, (*hw, 3)),
+        "roughness_levels": st.one_of(st.integers(1, 9), st.sampled_from([0, 64, 65])),
+    }))
+
+
+def test_random_maps_build_or_raise_value_errors_and_answer_finite():
+    """Over random map shapes, values, roughness levels and tint channels (Hypothesis, fixed
+    seed): a material builds or raises ValueError naming a map or roughness_levels (never a
+    panic), and a built one answers finite, non-negative f_hat, in colour exactly when its
+    tint is coloured."""
+    from hypothesis import given, settings
+
+    wi, wo, uv, dx, dy, _ = _queries(8, seed=21)
+
+    @settings(max_examples=60, deadline=None, derandomize=True, database=None)
+    @given(_maps_strategy())
+    def check(maps):
+        try:
+            m = glint.Material(particles=1e7, gamma_degrees=3.0, **maps)
+        except ValueError as error:
+            assert any(name in str(error) for name in (
+                "density_map", "alpha_map", "tint_map", "roughness_levels",
+                "roughness levels")), str(error)
+            return
+        f = m.eval(wi, wo, uv, dx * 50, dy * 50)["f_hat"]
+        assert np.all(np.isfinite(f)) and np.all(f >= 0)
+        tint = maps["tint_map"]
+        coloured = tint is not None and not (np.all(tint[..., 0] == tint[..., 1])
+                                             and np.all(tint[..., 1] == tint[..., 2]))
+        assert m.gray == (not coloured) and f.ndim == (2 if coloured else 1)
+
+    check()
