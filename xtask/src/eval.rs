@@ -239,7 +239,14 @@ mod tests {
                 with("\"pdf_quadrature\": 7"),
                 "material.pdf_quadrature 7 is unknown",
             ),
-            (with("\"epsilon\": 1e300"), "epsilon = 1e300 is invalid"),
+            (
+                eval.replace("\"epsilon\": 0.1", "\"epsilon\": 1e300"),
+                "epsilon = 1e300 is invalid",
+            ),
+            (
+                with("\"epsilon\": 0.2"),
+                "invalid JSON: duplicate key `epsilon`",
+            ),
             (
                 with("\"expected_footprint_area\": 0"),
                 "expected footprint area 0.0",
