@@ -11,7 +11,7 @@ import socket
 import numpy as np
 import pytest
 
-from test_render import SCENE, _scene
+from test_render import SCENE
 
 pytest.importorskip("distributed")
 pytest.importorskip("hypothesis")  # the package's test extra
@@ -19,6 +19,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 import glint.farm as farm  # noqa: E402
+from farm_stubs import ClusterStarted, no_cluster, scene  # noqa: E402,F401
 
 #: Few examples each, the same in every run (CI never meets a new example by chance), no
 #: example database written, no deadline (a run creates a folder and a lock).
@@ -26,27 +27,6 @@ FAST = settings(max_examples=60, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture])
 #: The pure frame-list properties: more examples, as cheap.
 MANY = settings(max_examples=200, deadline=None, derandomize=True, database=None)
-
-
-class ClusterStarted(Exception):
-    """Raised by the stand-ins for Client and LocalCluster: the run got as far as a cluster."""
-
-
-@pytest.fixture
-def no_cluster(monkeypatch):
-    """Client and LocalCluster replaced by stand-ins that raise ClusterStarted."""
-    import dask.distributed
-
-    def refuse(*args, **kwargs):
-        raise ClusterStarted()
-
-    monkeypatch.setattr(dask.distributed, "Client", refuse)
-    monkeypatch.setattr(dask.distributed, "LocalCluster", refuse)
-
-
-@pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    return _scene(tmp_path_factory.mktemp("scene"))
 
 
 #: Each integer argument: its valid range (None: no upper limit).

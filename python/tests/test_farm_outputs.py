@@ -10,10 +10,9 @@ import sys
 
 import pytest
 
-from test_render import _scene
-
 pytest.importorskip("distributed")
 import glint.farm as farm  # noqa: E402
+from farm_stubs import ClusterStarted, no_cluster, scene  # noqa: E402,F401
 
 #: Holds the lock of the folder argv[1] until its standard input closes.
 _HOLDER = """
@@ -22,27 +21,6 @@ with glint.farm._FolderLock(sys.argv[1]):
     print("locked", flush=True)
     sys.stdin.read()
 """
-
-
-class ClusterStarted(Exception):
-    """Raised by the stand-ins for Client and LocalCluster: the run got as far as a cluster."""
-
-
-@pytest.fixture
-def no_cluster(monkeypatch):
-    import dask.distributed
-
-    def refuse(*args, **kwargs):
-        raise ClusterStarted()
-
-    monkeypatch.setattr(dask.distributed, "Client", refuse)
-    monkeypatch.setattr(dask.distributed, "LocalCluster", refuse)
-
-
-@pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    """One scene file for the module: the probe renders reuse its loaded scene."""
-    return _scene(tmp_path_factory.mktemp("scene"))
 
 
 @pytest.fixture
