@@ -14,8 +14,8 @@
 //! table, the one-point rule elsewhere) to a final cell L of diameter at most [`LEAF_CELL_ARC`]
 //! and lands uniformly in it, with density P(L)/σ(L). Where Alg. 2 accepted a cell by δ_abs
 //! (the far tails) this can exceed p many times over (~40× for Beckmann α = 0.3 at 45°), so
-//! when the test is on, the material enumerates its final cells once
-//! ([`CountTree::directional_law_excess`], 20–40 ms) for W = max_L P(L)/(σ(L)·B_L), B_L the bound
+//! when the test is on, the material enumerates its final cells once per law in a process
+//! ([`CountTree::directional_law_excess`], 20–70 ms, remembered for the 64 latest laws) for W = max_L P(L)/(σ(L)·B_L), B_L the bound
 //! of [`Microfacet::particle_density_bound`] over L's circumscribed cap, and M, the mass of the
 //! cells where B_L = 0. A final cell meeting the conic's cap lies, with its circumscribed cap,
 //! within 2·[`LEAF_CELL_ARC`] of it; with θ_a the axis's angle from n and
@@ -29,10 +29,62 @@
 //! stops early (assuming p uniform over a coarse cell); for a query that finds nothing those
 //! are below ε²E² per node, E the tree's own estimate of the expected count.
 
+use std::sync::Mutex;
+
 use glint_sphere::SphericalConic;
 use glint_tree::{CountTree, DirectionalLawExcess, LEAF_CELL_ARC};
 
-use crate::distribution::Microfacet;
+use crate::distribution::{DistributionKind, Microfacet};
+
+/// A directional law: the distribution's kind, α_x and α_y (as bits) and the tree's Alg. 2
+/// tolerances (δ_abs, δ_rel as bits, the deepest table level). W and M depend on nothing else:
+/// not on N, the seed, γ, ε or the maps (they describe how normals descend the directional
+/// hierarchy, which those do not change).
+type LawKey = (DistributionKind, u64, u64, u64, u64, u32);
+
+/// The most laws [`LAW_EXCESSES`] remembers.
+const REMEMBERED_LAWS: usize = 64;
+
+/// The law excesses computed in this process, the most recent last: materials of one law
+/// (realizations with other seeds, `eval`'s one-query materials, N or γ varied) enumerate the
+/// final cells once (20–70 ms), and every later build reads W and M here, bit for bit what
+/// the enumeration gives (it is deterministic).
+static LAW_EXCESSES: Mutex<Vec<(LawKey, DirectionalLawExcess)>> = Mutex::new(Vec::new());
+
+/// W and M of `tree`'s particles, whose normals follow `distribution`'s p: remembered by law.
+fn law_excess(tree: &CountTree, distribution: Microfacet) -> DirectionalLawExcess {
+    let (alpha_x, alpha_y) = distribution.alpha();
+    let tolerance = tree.config().quadrature;
+    let key: LawKey = (
+        distribution.kind(),
+        alpha_x.to_bits(),
+        alpha_y.to_bits(),
+        tolerance.absolute.to_bits(),
+        tolerance.relative.to_bits(),
+        tolerance.max_depth,
+    );
+    let remembered = |memo: &Vec<(LawKey, DirectionalLawExcess)>| {
+        memo.iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, excess)| *excess)
+    };
+    // A panic elsewhere while the lock was held leaves the memo as valid as before.
+    let lock = || LAW_EXCESSES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(excess) = remembered(&lock()) {
+        return excess;
+    }
+    // Computed without the lock: two threads may both compute a new law, to the same values.
+    let excess =
+        tree.directional_law_excess(&|near, far| distribution.particle_density_bound(near, far));
+    let mut memo = lock();
+    if remembered(&memo).is_none() {
+        if memo.len() == REMEMBERED_LAWS {
+            memo.remove(0);
+        }
+        memo.push((key, excess));
+    }
+    excess
+}
 
 /// The per-material constants of the bound λ̄, computed once.
 #[derive(Clone, Copy, Debug)]
@@ -49,9 +101,7 @@ impl NegligibleTest {
     pub(crate) fn new(tree: &CountTree, distribution: Microfacet) -> Self {
         let (widening_sin, widening_cos) = (2.0 * LEAF_CELL_ARC).sin_cos();
         Self {
-            law_excess: tree.directional_law_excess(&|near, far| {
-                distribution.particle_density_bound(near, far)
-            }),
+            law_excess: law_excess(tree, distribution),
             widening_cos,
             widening_sin,
         }
@@ -95,5 +145,49 @@ impl NegligibleTest {
             * area
             * (self.law_excess.ratio * density * cap_solid_angle + self.law_excess.unbounded_mass);
         if bound.is_nan() { f64::INFINITY } else { bound }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{DiscreteBrdf, GlintParameters};
+
+    /// Materials of one law (other seeds, N, γ, ε) read the remembered W and M, which are the
+    /// enumeration's, bit for bit; another α is another law.
+    #[test]
+    fn the_law_excess_is_remembered_by_law() {
+        let distribution = Microfacet::new(DistributionKind::Ggx, 0.137, 0.211).unwrap();
+        let material = |seed: u64, particles: u64, gamma_degrees: f64| {
+            let mut parameters = GlintParameters::new(distribution);
+            parameters.seed = seed;
+            parameters.particles = particles;
+            parameters.gamma_radians = gamma_degrees.to_radians();
+            parameters.negligible_count = 1e-12;
+            DiscreteBrdf::new(parameters).unwrap()
+        };
+        let first = material(1, 1_000_000, 1.0);
+        let fresh = first
+            .tree()
+            .directional_law_excess(&|near, far| distribution.particle_density_bound(near, far));
+        for other in [material(2, 1_000_000, 1.0), material(3, 1 << 40, 4.0)] {
+            let (a, b) = (first.negligible_test(), other.negligible_test());
+            assert_eq!(a.map(|c| c.law_excess_ratio), b.map(|c| c.law_excess_ratio));
+            assert_eq!(a.map(|c| c.unbounded_mass), b.map(|c| c.unbounded_mass));
+        }
+        let constants = first.negligible_test().unwrap();
+        assert_eq!(constants.law_excess_ratio.to_bits(), fresh.ratio.to_bits());
+        assert_eq!(
+            constants.unbounded_mass.to_bits(),
+            fresh.unbounded_mass.to_bits()
+        );
+        let rougher = Microfacet::new(DistributionKind::Ggx, 0.3, 0.211).unwrap();
+        let mut parameters = GlintParameters::new(rougher);
+        parameters.negligible_count = 1e-12;
+        let other_law = DiscreteBrdf::new(parameters).unwrap();
+        assert_ne!(
+            other_law.negligible_test().unwrap().law_excess_ratio,
+            constants.law_excess_ratio
+        );
     }
 }
