@@ -483,32 +483,33 @@ impl Material {
         })
     }
 
+    /// The glint parts of the material, in order (itself, or a mix's, recursively).
+    fn glint_parts(&self) -> Vec<&GlintMaterial> {
+        match self {
+            Self::Glint(g) => vec![g],
+            Self::Mix(parts) => parts.iter().flat_map(|(_, m)| m.glint_parts()).collect(),
+            _ => Vec::new(),
+        }
+    }
+
     /// The `expected_footprint_area` of each glint part, in order (Eq. 11's plan, see
     /// [`crate::plan`]); empty for materials without glints.
     #[must_use]
     pub fn expected_footprint_areas(&self) -> Vec<f64> {
-        match self {
-            Self::Glint(g) => vec![g.brdf.parameters().expected_footprint_area],
-            Self::Mix(parts) => parts
-                .iter()
-                .flat_map(|(_, m)| m.expected_footprint_areas())
-                .collect(),
-            _ => Vec::new(),
-        }
+        self.glint_parts()
+            .iter()
+            .map(|g| g.brdf.parameters().expected_footprint_area)
+            .collect()
     }
 
     /// N, the particles per texture square, of each glint part, in order; empty for materials
     /// without glints.
     #[must_use]
     pub fn glint_particles(&self) -> Vec<u64> {
-        match self {
-            Self::Glint(g) => vec![g.brdf.parameters().particles],
-            Self::Mix(parts) => parts
-                .iter()
-                .flat_map(|(_, m)| m.glint_particles())
-                .collect(),
-            _ => Vec::new(),
-        }
+        self.glint_parts()
+            .iter()
+            .map(|g| g.brdf.parameters().particles)
+            .collect()
     }
 
     /// Whether any part of the material is a glint material.
