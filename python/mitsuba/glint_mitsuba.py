@@ -69,9 +69,16 @@ class GlintBSDF(mi.BSDF):
     deprecated), ``epsilon`` (0.1), ``seed`` (0), ``multinomial``
     ("exact"), ``negligible_count`` (1e-12), ``expected_footprint_area`` (1e-6),
     ``pdf_quadrature`` ("cubature", or "qmc"), ``pdf_points`` (64), ``roughness_levels`` (8;
-    without maps it changes nothing): as ``glint.Material``, which checks them (an invalid
-    one raises ``ValueError`` naming it); ``uv_scale`` (1): texture repetitions per unit of
-    the shape's (u, v), positive and finite, as in the scene files. F = 1 (no Fresnel).
+    without an ``alpha_map`` it changes nothing): as ``glint.Material``, which checks them (an
+    invalid one raises ``ValueError`` naming it); ``uv_scale`` (1): texture repetitions per
+    unit of the shape's (u, v), positive and finite, as in the scene files. F = 1 (no Fresnel).
+
+    Maps (none by default): ``density_map``, ``alpha_map`` and ``tint_map``, each a ``bitmap``
+    texture or an image filename, read by ``glint_maps.py`` (which states what is read and how
+    texels are placed) into ``glint.Material``'s maps; they tile with the texture square, so
+    ``uv_scale`` scales them with the flakes. With maps, the smooth limit, the sampler and its
+    pdf are the material's at the interaction's texture position (``glint.Material`` with
+    ``uv``); a coloured tint answers in colour.
 
     Sampling: Mitsuba gives three numbers (``sample1``, ``sample2``); the glint sampler takes
     them in its three-number form u = (sample2.x, sample2.y, sample1): the 2-D sample chooses
@@ -86,8 +93,8 @@ class GlintBSDF(mi.BSDF):
 
         # uv_scale as in scene files (positive and finite, glint-tracer's); the package
         # checks every material parameter, naming it (a seed of 1.7 is an error, not 1).
-        self.params, self.uv_scale = material_parameters(props)
-        self.material = glint.Material(**self.params)
+        self.params, self.maps, self.map_sources, self.uv_scale = material_parameters(props)
+        self.material = glint.Material(**self.params, **self.maps)
         self.m_components = [_FLAGS]
         self.m_flags = _FLAGS
 
@@ -101,19 +108,30 @@ class GlintBSDF(mi.BSDF):
         s = self.uv_scale
         return np.array([si.uv[0], si.uv[1]]) * s, dx * s, dy * s
 
+    def texture_position(self, si):
+        """Where a material with maps is read: si.uv · uv_scale as float64 (None without
+        maps: the answers do not depend on it)."""
+        if not self.maps:
+            return None
+        return np.array([si.uv[0], si.uv[1]]) * self.uv_scale
+
     def brdf(self, si, wo):
-        """f (no cosine) at (si.wi, wo) as a float: f̂ with si's footprint, f_smooth without,
-        and also where the package refuses the footprint (an edge beyond ±1e15 texture units,
-        where glint-tracer shades the smooth limit too); 0 where it refuses the directions.
-        A row the package reports as an error never becomes a NaN pixel."""
+        """f (no cosine) at (si.wi, wo): f̂ with si's footprint, the smooth limit without
+        (at si's texture position, for a material with maps), and also where the package
+        refuses the footprint (an edge beyond ±1e15 texture units, where glint-tracer shades
+        the smooth limit too); 0 where it refuses the directions. A float, or an (r, g, b)
+        array for a coloured tint. A row the package reports as an error never becomes a NaN
+        pixel."""
         wi, wo = _vec(si.wi), _vec(wo)
         fp = self.footprint(si)
         if fp is not None:
             r = self.material.eval(wi, wo, *fp)
             if r["error"] == "":
-                return float(r["f_hat"])
-        r = self.material.eval(wi, wo, [0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
-        return float(r["f_smooth"]) if r["error"] == "" else 0.0
+                return _value(r["f_hat"])
+        at = self.texture_position(si)
+        zero = [0.0, 0.0]
+        r = self.material.eval(wi, wo, zero if at is None else at, zero, zero)
+        return _value(r["f_smooth"]) if r["error"] == "" else 0.0
 
     def _active(self, ctx, si, active):
         return bool(active) and ctx.is_enabled(mi.BSDFFlags.GlossyReflection, 0) and si.wi[2] > 0
@@ -124,12 +142,12 @@ class GlintBSDF(mi.BSDF):
         if not self._active(ctx, si, active) or not wo[2] > 0:
             return mi.Color3f(0.0)
         w = _vec(wo)
-        return mi.Color3f(self.brdf(si, wo) * w[2] / np.linalg.norm(w))
+        return _colour(self.brdf(si, wo) * w[2] / np.linalg.norm(w))
 
     def pdf(self, ctx, si, wo, active=True):
         if not self._active(ctx, si, active) or not wo[2] > 0:
             return 0.0
-        p = float(self.material.pdf(_vec(si.wi), _vec(wo)))
+        p = float(self.material.pdf(_vec(si.wi), _vec(wo), self.texture_position(si)))
         return p if math.isfinite(p) else 0.0
 
     def eval_pdf(self, ctx, si, wo, active=True):
@@ -142,21 +160,39 @@ class GlintBSDF(mi.BSDF):
         if not self._active(ctx, si, active):
             return bs, mi.Color3f(0.0)
         u = [min(float(x), _BELOW_ONE) for x in (sample2[0], sample2[1], sample1)]
-        s = self.material.sample(_vec(si.wi), u)
+        at = self.texture_position(si)
+        if at is None:
+            s = self.material.sample(_vec(si.wi), u)
+        else:
+            # A material with maps samples (and weighs) its lobes at the texture position; the
+            # package takes it with a footprint, here an empty one (its f̂ is not used).
+            s = self.material.sample(_vec(si.wi), u, at, [0.0, 0.0], [0.0, 0.0])
         if not (np.all(np.isfinite(s["wo"])) and s["pdf"] > 0):
             return bs, mi.Color3f(0.0)
         bs.wo = mi.Vector3f(*s["wo"])
         bs.pdf = float(s["pdf"])
         if self.footprint(si) is None:
-            weight = float(s["weight"])
+            weight = _value(s["smooth_weight"])
         else:
             wo = _vec(bs.wo)
             weight = self.brdf(si, bs.wo) * wo[2] / np.linalg.norm(wo) / float(s["pdf"])
-        return bs, mi.Color3f(weight)
+        return bs, _colour(weight)
 
     def to_string(self):
         fields = ", ".join(f"{k}={v!r}" for k, v in self.params.items())
-        return f"GlintBSDF[{fields}, uv_scale={self.uv_scale!r}]"
+        maps = "".join(f", {k}={v}" for k, v in self.map_sources.items())
+        return f"GlintBSDF[{fields}{maps}, uv_scale={self.uv_scale!r}]"
+
+
+def _value(f):
+    """A package answer as the plugin's BRDF value: a float when grey, else an (r, g, b)
+    float64 array."""
+    return float(f) if np.ndim(f) == 0 else np.asarray(f, dtype=np.float64)
+
+
+def _colour(f):
+    """mi.Color3f of a float or an (r, g, b) array."""
+    return mi.Color3f(f) if np.ndim(f) == 0 else mi.Color3f(*(float(c) for c in f))
 
 
 def _power_heuristic(a, b):

@@ -35,8 +35,10 @@ import numpy as np
 
 import glint
 from glint_lobe import Lobe
+from glint_maps import maps_from_properties
 
 _MAX_DOUBLE = float(np.finfo(np.float64).max)
+_BELOW_ONE = math.nextafter(1.0, 0.0)
 #: The largest ``footprint_scale``, as glint-tracer's (a footprint of 10⁶ pixels).
 _MAX_FOOTPRINT_SCALE = 1e6
 
@@ -55,7 +57,9 @@ def scale_parameter(name, value, lowest, highest, zero=False):
 
 def material_parameters(props):
     """The ``glint`` BSDF's parameters from Mitsuba properties: (``glint.Material`` keyword
-    arguments, ``uv_scale``), both checked (``ValueError`` naming a bad one)."""
+    arguments but the maps, the maps (``glint.Material`` keyword arguments: NumPy arrays),
+    what each map was read from, ``uv_scale``), all checked (``ValueError`` naming a bad
+    one; ``glint_maps.maps_from_properties`` reads the maps)."""
 
     def get(name, default):
         return props.get(name, default) if name in props else default
@@ -71,7 +75,8 @@ def material_parameters(props):
         expected_footprint_area=get("expected_footprint_area", 1e-6),
         pdf_quadrature=get("pdf_quadrature", "cubature"), pdf_points=get("pdf_points", 64),
         roughness_levels=get("roughness_levels", 8))
-    return params, uv_scale
+    maps, sources = maps_from_properties(props)
+    return params, maps, sources, uv_scale
 
 
 def _packed_rows(index, vectors):
@@ -95,6 +100,22 @@ def _width(*values):
 
 def _float(a):
     return mi.Float(np.ascontiguousarray(a, dtype=np.float32))
+
+
+def _rows_finite(f):
+    """Rows of the package's answers ((n,) or (n, 3)) that are finite."""
+    return np.isfinite(f) if f.ndim == 1 else np.all(np.isfinite(f), axis=1)
+
+
+def _where(rows, f, other):
+    """``f`` on the ``rows`` (a mask of n), ``other`` elsewhere, for (n,) or (n, 3) answers."""
+    return np.where(rows if np.ndim(f) == 1 else rows[:, None], f, other)
+
+
+def _finite(value):
+    """The lanes where a Float or Color3f value is finite (every channel)."""
+    finite = dr.isfinite(value)
+    return finite if isinstance(value, mi.Float) else dr.all(finite)
 
 
 def register():
@@ -149,10 +170,17 @@ def register():
              - cubature, 64
              - the sampler pdf's rule; here ``cubature`` only (its pdf runs in Dr.Jit), the
                scalar plugin also takes ``qmc`` over ``pdf_points``
+           * - density_map, alpha_map, tint_map
+             - texture or string
+             - none
+             - a ``bitmap`` texture or an image filename (``glint_maps.py``): the flakes'
+               density d ∈ [0, 1] (0 masks), their roughness α ∈ [1e-4, 1] (replacing
+               ``alpha``), a colour scaling their reflectance
            * - roughness_levels
              - int
              - 8
-             - as ``glint.Material`` (Mitsuba has no maps yet, so it changes nothing)
+             - as ``glint.Material``: an ``alpha_map`` of at most this many distinct α is
+               exact (without one it changes nothing)
            * - uv_scale
              - float
              - 1
@@ -160,30 +188,59 @@ def register():
 
         Every parameter is checked (``ValueError`` naming it). F = 1. Sampling uses the glint
         sampler's three-number form u = (sample2.x, sample2.y, sample1), as the scalar plugin.
+
+        With maps, the smooth limit is the package's at the texture position (one row per
+        lane that needs it); a coloured tint answers in colour. A density or tint map leaves
+        the lobe the same everywhere: the sampler, its pdf and the negligible-query test stay
+        in Dr.Jit (the test of the material without maps bounds the mapped one's: a density
+        is at most 1). A roughness map varies the lobe over the surface: the sampler and its
+        pdf are then the package's at the texture position, and every footprint query goes
+        to the package.
         """
 
         def __init__(self, props):
             super().__init__(props)
-            self.params, self.uv_scale = material_parameters(props)
-            self.material = glint.Material(**self.params)
-            self.lobe = Lobe(self.material._spec, self.material.negligible_test)
+            self.params, self.maps, self.map_sources, self.uv_scale = material_parameters(
+                props)
+            self.material = glint.Material(**self.params, **self.maps)
+            self.coloured = not self.material.gray
+            #: Whether the lobe varies over the surface (a roughness map): the package samples.
+            self.lobe_varies = "alpha_map" in self.maps
+            if self.lobe_varies:
+                self.lobe = Lobe(self.material._spec, None)
+            else:
+                uniform = glint.Material(**self.params) if self.maps else self.material
+                self.lobe = Lobe(uniform._spec, uniform.negligible_test)
             self.m_components = [flags]
             self.m_flags = flags
 
         # -- the parts: the smooth lobe and the sampler in Dr.Jit, f̂ from the package ------
 
         def footprint(self, si):
-            """(uv, duv_dx, duv_dy) · uv_scale, and the mask of lanes that carry uv partials."""
+            """(uv, duv_dx, duv_dy) · uv_scale in double precision (the scalar plugin's
+            numbers), and the mask of lanes that carry uv partials."""
             has = dr.any(si.duv_dx != 0.0) | dr.any(si.duv_dy != 0.0)
             s = self.uv_scale
-            return si.uv * s, si.duv_dx * s, si.duv_dy * s, has
+            return (mi.Vector2d(si.uv) * s, mi.Vector2d(si.duv_dx) * s,
+                    mi.Vector2d(si.duv_dy) * s, has)
+
+        def _zeros(self, width):
+            """A BRDF value of 0 on ``width`` lanes: Float, or Color3f for a coloured tint."""
+            return dr.zeros(mi.Color3f if self.coloured else mi.Float, width)
+
+        def _scatter(self, target, rows, index):
+            """Scatter the package's answers ``rows`` ((n,) or (n, 3) NumPy) to ``index``."""
+            if rows.ndim == 1:
+                dr.scatter(target, _float(rows), index)
+            else:
+                dr.scatter(target, mi.Color3f(*(_float(rows[:, c]) for c in range(3))), index)
 
         def f_hat(self, si, wo, lanes):
             """(f̂ without the cosine, refused): the package's f̂ on the ``lanes`` (a mask),
             gathered to NumPy and scattered back; 0 and False elsewhere. ``refused`` marks the
             lanes whose row the package refused (an error, never NaN)."""
             width = _width(si.wi, si.uv, wo, lanes)
-            value, refused = dr.zeros(mi.Float, width), dr.zeros(mi.Bool, width)
+            value, refused = self._zeros(width), dr.zeros(mi.Bool, width)
             index = dr.compress(mi.Bool(lanes) if isinstance(lanes, bool) else lanes)
             if dr.width(index) == 0:
                 return value, refused
@@ -191,20 +248,30 @@ def register():
             rows = _packed_rows(index, (si.wi, wo, uv, dx, dy))
             f = self.material.f_hat(rows[:, 0:3], rows[:, 3:6], rows[:, 6:8], rows[:, 8:10],
                                     rows[:, 10:12])
-            ok = np.isfinite(f)
-            dr.scatter(value, _float(np.where(ok, f, 0.0)), index)
+            ok = _rows_finite(f)
+            self._scatter(value, _where(ok, f, 0.0), index)
             dr.scatter(refused, mi.Bool(~ok), index)
             return value, refused
 
+        def f_smooth_at(self, si, wo, index):
+            """The package's smooth limit at the texture position (si.uv · uv_scale) of the
+            lanes ``index``, for a material with maps: (n,) or (n, 3) NumPy, 0 where the
+            package refuses the row."""
+            rows = _packed_rows(index, (si.wi, wo, si.uv))
+            zero = np.zeros((len(rows), 2))
+            r = self.material.eval(rows[:, 0:3], rows[:, 3:6], rows[:, 6:8] * self.uv_scale,
+                                   zero, zero, expected_count=False)
+            return _where(r["error"] == "", r["f_smooth"], 0.0)
+
         def brdf(self, si, wo, active):
             """f (no cosine): f̂ where the lane carries a footprint (the smooth f where the
-            package refuses it), the smooth f elsewhere."""
+            package refuses it), the smooth f elsewhere. Float, or Color3f for a coloured
+            tint."""
             uv, dx, dy, has = self.footprint(si)
             wi64, wo64 = mi.Vector3d(si.wi), mi.Vector3d(wo)
             ask = active & has
             # Queries the package would skip as negligible are answered here (f̂ = 0).
-            skips = self.lobe.skips(wi64, wo64, mi.Vector2d(uv), mi.Vector2d(dx),
-                                    mi.Vector2d(dy))
+            skips = self.lobe.skips(wi64, wo64, uv, dx, dy)
             if skips is not None:
                 ask &= ~skips
             value, refused = self.f_hat(si, wo, ask)
@@ -212,11 +279,33 @@ def register():
             # (none at a first hit, all after it).
             smooth = mi.Bool(active) & (~has | refused)
             lanes = dr.compress(smooth)
-            if dr.width(lanes):
+            if dr.width(lanes) and self.maps:
+                self._scatter(value, self.f_smooth_at(si, wo, lanes), lanes)
+            elif dr.width(lanes):
                 dr.eval(si.wi, wo)
                 wi_s, wo_s = (mi.Vector3d(dr.gather(mi.Vector3f, v, lanes)) for v in (si.wi, wo))
                 dr.scatter(value, mi.Float(self.lobe.f_smooth(wi_s, wo_s)), lanes)
             return value
+
+        def sample_at(self, si, sample1, sample2, active):
+            """(wo, valid): the package's sampler at the texture position on the ``active``
+            lanes (a roughness map's lobes there), from the same three numbers as the
+            Dr.Jit sampler's."""
+            width = _width(si.wi, si.uv, sample1, sample2, active)
+            wo, valid = dr.zeros(mi.Vector3f, width), dr.zeros(mi.Bool, width)
+            lanes = dr.compress(mi.Bool(active) if isinstance(active, bool) else active)
+            if dr.width(lanes) == 0:
+                return wo, valid
+            rows = _packed_rows(lanes, (si.wi, si.uv, sample2, [mi.Float(sample1)]))
+            u = np.minimum(rows[:, 5:8], _BELOW_ONE)
+            zero = np.zeros((len(rows), 2))
+            # The package takes the texture position with a footprint: an empty one here.
+            s = self.material.sample(rows[:, 0:3], u, rows[:, 3:5] * self.uv_scale, zero, zero)
+            ok = (s["pdf"] > 0) & np.all(np.isfinite(s["wo"]), axis=1)
+            w = np.where(ok[:, None], s["wo"], 0.0)
+            dr.scatter(wo, mi.Vector3f(*(_float(w[:, k]) for k in range(3))), lanes)
+            dr.scatter(valid, mi.Bool(ok), lanes)
+            return wo, valid
 
         def sampler_pdf(self, si, wo, active):
             """The glint sampler's density on the ``active`` lanes (0 elsewhere), computed on
@@ -227,6 +316,11 @@ def register():
             pdf = dr.zeros(mi.Float, width)
             lanes = dr.compress(mi.Bool(active) if isinstance(active, bool) else active)
             if dr.width(lanes) == 0:
+                return pdf
+            if self.lobe_varies:
+                rows = _packed_rows(lanes, (si.wi, wo, si.uv))
+                q = self.material.pdf(rows[:, 0:3], rows[:, 3:6], rows[:, 6:8] * self.uv_scale)
+                dr.scatter(pdf, _float(np.where(np.isfinite(q), q, 0.0)), lanes)
                 return pdf
             dr.eval(si.wi, wo)
             wi64, wo64 = (mi.Vector3d(dr.gather(mi.Vector3f, v, lanes)) for v in (si.wi, wo))
@@ -255,7 +349,7 @@ def register():
         def eval(self, ctx, si, wo, active=True):
             on = self._on(ctx, si, wo, active)
             f = self.brdf(si, wo, on) * (wo.z * dr.rsqrt(dr.squared_norm(wo)))
-            return mi.Color3f(dr.select(on & dr.isfinite(f), f, 0.0))
+            return mi.Color3f(dr.select(on & _finite(f), f, 0.0))
 
         def pdf(self, ctx, si, wo, active=True):
             on = self._on(ctx, si, wo, active)
@@ -266,15 +360,18 @@ def register():
 
         def sample(self, ctx, si, sample1, sample2, active=True):
             on = self._on(ctx, si, None, active)
-            wo64, valid = self.lobe.sample(mi.Vector3d(si.wi), mi.Float64(sample2.x),
-                                           mi.Float64(sample2.y), mi.Float64(sample1))
-            wo = mi.Vector3f(wo64)
-            valid &= on
+            if self.lobe_varies:
+                wo, valid = self.sample_at(si, sample1, sample2, on)
+            else:
+                wo64, valid = self.lobe.sample(mi.Vector3d(si.wi), mi.Float64(sample2.x),
+                                               mi.Float64(sample2.y), mi.Float64(sample1))
+                wo = mi.Vector3f(wo64)
+                valid &= on
             pdf = self.sampler_pdf(si, wo, valid)
             valid &= (pdf > 0.0) & dr.isfinite(pdf)
             # f·cos θ_o / pdf: f̂ where the lane carries a footprint, else the smooth f.
             weight = self.brdf(si, wo, valid) * wo.z / pdf
-            weight = dr.select(valid & dr.isfinite(weight), weight, 0.0)
+            weight = dr.select(valid & _finite(weight), weight, 0.0)
             bs = dr.zeros(mi.BSDFSample3f, dr.width(weight))
             # Where nothing is sampled: wo 0 and pdf 0, as the scalar plugin.
             bs.wo = dr.select(valid, wo, mi.Vector3f(0.0))
@@ -289,7 +386,8 @@ def register():
 
         def to_string(self):
             fields = ", ".join(f"{k}={v!r}" for k, v in self.params.items())
-            return f"GlintBSDF[{fields}, uv_scale={self.uv_scale!r}] (vectorized)"
+            maps = "".join(f", {k}={v}" for k, v in self.map_sources.items())
+            return f"GlintBSDF[{fields}{maps}, uv_scale={self.uv_scale!r}] (vectorized)"
 
     def power_heuristic(a, b):
         a2, b2 = dr.square(a), dr.square(b)
