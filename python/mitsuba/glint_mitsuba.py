@@ -293,7 +293,7 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
                         gamma_degrees=0.5, alpha=0.1, epsilon=0.1, seed=1, uv_scale=0.5,
                         negligible_count=1e-12, footprint_scale=1.0, hide_emitters=False,
                         rfilter="gaussian", sampler_seed=0, integrator="glint_direct",
-                        max_depth=6):
+                        max_depth=6, density_map=None):
     """A Mitsuba scene dict of ``scenes/sphere_lights.toml`` (frame 0), small by default.
 
     ``floor``: "glint" (the ``glint`` BSDF with the scene's material) or "roughconductor"
@@ -305,6 +305,10 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
 
     ``integrator``: "glint_direct", "glint_path" (vectorized variants only; ``max_depth``) or
     Mitsuba's "path". Render it with ``render`` (below) to bound memory.
+
+    ``density_map``: the glint floor's ``density_map`` (a bitmap texture dict or an image
+    filename; ``stripes_density_map()`` gives bands across the view), tiling with the floor's
+    texture square (``uv_scale`` = 0.5: one square per 80 m). Not for the roughconductor floor.
     """
     width, height = resolution
     if floor == "glint":
@@ -312,7 +316,11 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
                 "particles": float(particles), "gamma_degrees": gamma_degrees, "epsilon": epsilon,
                 "seed": int(seed), "uv_scale": uv_scale,
                 "negligible_count": negligible_count}
+        if density_map is not None:
+            bsdf["density_map"] = density_map
     elif floor == "roughconductor":
+        if density_map is not None:
+            raise ValueError("density_map is for the glint floor: roughconductor has none")
         bsdf = {"type": "roughconductor", "distribution": "beckmann", "alpha": alpha,
                 "material": "none"}
     else:
@@ -354,6 +362,20 @@ def sphere_lights_scene(resolution=(48, 27), spp=4, floor="glint", *, particles=
                                "emitter": {"type": "area", "radiance": {
                                    "type": "rgb", "value": [radiance] * 3}}}
     return scene
+
+
+def stripes_density_map(rows=1024, period=8):
+    """A density map of bands across the sphere-lights floor, as a bitmap texture dict: ``rows``
+    × 2 texels (glint's texture square, 80 m of the floor at its ``uv_scale``) alternating
+    ``period``/2 rows of density 1 and as many of 0 (no flakes), bands of constant v, so of
+    constant depth in the view: 0.3125 m each by default. Float texels, so ``raw`` changes
+    nothing; it says that they are data."""
+    if not (isinstance(period, int) and period >= 2 and period % 2 == 0):
+        raise ValueError(f"period = {period!r} must be an even whole number of rows ≥ 2")
+    on = (np.arange(rows) // (period // 2)) % 2 == 0
+    image = np.repeat(on.astype(np.float32)[:, None], 2, axis=1)[:, :, None]
+    return {"type": "bitmap", "bitmap": mi.Bitmap(image), "raw": True,
+            "filter_type": "nearest"}
 
 
 #: The most samples a pass of ``render`` traces at once in a vectorized variant (each holds a

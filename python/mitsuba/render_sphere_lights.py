@@ -2,6 +2,7 @@
 
     python python/mitsuba/render_sphere_lights.py [--variant scalar_rgb|llvm_ad_rgb]
         [--integrator glint_direct|glint_path] [--spp N] [--resolution WxH] [--out FILE]
+        [--floor glint|roughconductor] [--density-map stripes|IMAGE]
 
 FILE ends in .png (exposure −2.5 stops, as the scene file; sRGB) or .exr (linear). In
 ``scalar_rgb`` Mitsuba calls the Python plugins once per sample, so the default is small
@@ -9,7 +10,10 @@ FILE ends in .png (exposure −2.5 stops, as the scene file; sRGB) or .exr (line
 needs LLVM 19, see python/README.md). ``--integrator glint_path`` (vectorized variants only)
 traces paths: pixel footprints at the first hit, the smooth limit after. Images are rendered
 in passes of ``--samples-per-pass`` samples per pixel (by default as many as keep a pass
-within 2²¹ samples), so memory stays bounded.
+within 2²¹ samples), so memory stays bounded. ``--density-map`` maps the glint floor's flake
+density: ``stripes`` (bands of flakes and bare floor across the view,
+``glint_mitsuba.stripes_density_map``) or an image file, read as the glint BSDF reads a
+filename (python/mitsuba/glint_maps.py), its texture square 80 m of the floor.
 """
 
 import argparse
@@ -42,6 +46,9 @@ def main(argv=None):
                         help="output .png or .exr (sphere_lights_mitsuba.png)")
     parser.add_argument("--floor", choices=["glint", "roughconductor"], default="glint",
                         help="the floor's BSDF (glint)")
+    parser.add_argument("--density-map", default=None, metavar="stripes|IMAGE",
+                        help="the glint floor's density map: bands across the view "
+                             "(stripes) or an image file (none)")
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (0)")
     parser.add_argument("--variant", choices=["scalar_rgb", "llvm_ad_rgb", "cuda_ad_rgb"],
                         default="scalar_rgb", help="Mitsuba variant (scalar_rgb)")
@@ -59,6 +66,8 @@ def main(argv=None):
     if args.integrator == "glint_path" and args.variant == "scalar_rgb":
         parser.error("--integrator glint_path needs a vectorized variant (--variant llvm_ad_rgb): "
                      "the scalar plugins have no path integrator")
+    if args.density_map is not None and args.floor != "glint":
+        parser.error("--density-map maps the glint floor (--floor glint)")
     if args.variant not in mi.variants():
         parser.error(f"this Mitsuba has no variant {args.variant}")
     mi.set_variant(args.variant)
@@ -67,9 +76,13 @@ def main(argv=None):
     if suffix not in (".png", ".exr"):
         parser.error("--out must end in .png or .exr")
 
+    density_map = args.density_map
+    if density_map == "stripes":
+        density_map = gm.stripes_density_map()
     scene = mi.load_dict(gm.sphere_lights_scene(args.resolution, args.spp, args.floor,
                                                 sampler_seed=args.seed,
-                                                integrator=args.integrator))
+                                                integrator=args.integrator,
+                                                density_map=density_map))
     start = time.perf_counter()
     image = gm.render(scene, samples_per_pass=args.samples_per_pass, seed=args.seed)
     seconds = time.perf_counter() - start
@@ -78,7 +91,8 @@ def main(argv=None):
     args.out.parent.mkdir(parents=True, exist_ok=True)
     mi.util.write_bitmap(str(args.out), image)
     w, h = args.resolution
-    print(f"{args.out}: {w}x{h}, {args.spp} spp, {args.floor} floor, {args.variant}, "
+    mapped = "" if args.density_map is None else f" (density map {args.density_map})"
+    print(f"{args.out}: {w}x{h}, {args.spp} spp, {args.floor} floor{mapped}, {args.variant}, "
           f"{args.integrator}, {seconds:.1f} s")
 
 
