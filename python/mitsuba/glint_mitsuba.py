@@ -378,6 +378,23 @@ def stripes_density_map(rows=1024, period=8):
             "filter_type": "nearest"}
 
 
+def holds_glint(bsdf):
+    """Whether ``bsdf`` is a glint BSDF or holds one among its nested BSDFs (a ``blendbsdf``'s,
+    a ``twosided``'s, at any depth)."""
+    if isinstance(bsdf, GlintBSDF):
+        return True
+    nested = []
+
+    class Nested(mi.TraversalCallback):
+        def put(self, name, value, flags):
+            if isinstance(value, mi.BSDF):
+                nested.append(value)
+
+    if bsdf is not None:
+        bsdf.traverse(Nested())
+    return any(holds_glint(b) for b in nested)
+
+
 #: The most samples a pass of ``render`` traces at once in a vectorized variant (each holds a
 #: few hundred bytes in the plugins' NumPy rows and Dr.Jit's arrays: about 1 GB at this size).
 MAX_WAVEFRONT = 1 << 21
@@ -409,8 +426,7 @@ def render(scene, samples_per_pass=None, seed=0):
                          f"the sample count {spp}")
     passes = spp // int(samples_per_pass)
     total = None
-    python_bsdfs = VECTORIZED and any(isinstance(shape.bsdf(), GlintBSDF)
-                                      for shape in scene.shapes())
+    python_bsdfs = VECTORIZED and any(holds_glint(shape.bsdf()) for shape in scene.shapes())
     with contextlib.ExitStack() as flags:
         if python_bsdfs:
             # Mitsuba's own integrators can call a Python BSDF only in evaluated mode.
