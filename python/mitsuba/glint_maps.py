@@ -110,7 +110,8 @@ def image_texels(name, value, kind):
         return _bitmap_texels(name, value, kind), (
             f"bitmap {found.group(1)!r}" if found and found.group(1) else "bitmap")
     wanted = f"glint.{name} must be a bitmap texture or an image filename"
-    if isinstance(value, (int, float)) or type(value).__name__.startswith("Color"):
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if number or type(value).__name__.startswith("Color"):
         raise ValueError(f"{wanted}, not the constant {value!r}: {_CONSTANT[name]}")
     raise ValueError(f"{wanted}, not a {type(value).__name__}")
 

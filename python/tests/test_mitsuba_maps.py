@@ -357,6 +357,10 @@ def test_reading_rules(tmp_path):
                                      "its map is alpha_map"),
     ({"density_texture": "d.png"}, "glint.density_texture is not a parameter"),
     ({"density_map": "no/such/file.png"}, "glint.density_map: cannot read the image"),
+    ({"density_map": mi.Bitmap(np.ones((2, 2, 1), dtype=np.float32))},
+     "glint.density_map must be a bitmap texture or an image filename, not a Bitmap"),
+    ({"tint_map": True}, "glint.tint_map must be a bitmap texture or an image filename, not a "
+                         "bool"),
 ])
 def test_other_kinds_are_refused_naming_the_parameter(props, message):
     mi.set_variant("scalar_rgb")
