@@ -102,6 +102,30 @@ def _float(a):
     return mi.Float(np.ascontiguousarray(a, dtype=np.float32))
 
 
+class TexelLookup:
+    """A glint map's texels in Dr.Jit arrays, read at texture positions as the package reads
+    them (glint-brdf's ``DensityMap::value_at`` and ``TintMap::value_at``): the texel holding
+    uv wrapped into the unit square, densities in the package's fixed point (steps of 2⁻³²)."""
+
+    def __init__(self, texels, fixed_point=False):
+        """``texels``: a glint map, (H, W) or (H, W, 3) float64, row 0 at the top (v near 1)."""
+        texels = np.asarray(texels, dtype=np.float64)
+        if fixed_point:
+            texels = np.floor(texels * 2.0**32 + 0.5) / 2.0**32
+        self.height, self.width = texels.shape[:2]
+        from_bottom = np.flipud(texels).reshape(self.height * self.width, -1)
+        self.channels = [mi.Float64(np.ascontiguousarray(from_bottom[:, c]))
+                         for c in range(from_bottom.shape[1])]
+
+    def at(self, uv):
+        """The texel values at ``uv`` (Vector2d), one Float64 per channel."""
+        x = uv - dr.floor(uv)
+        column = dr.minimum(mi.UInt32(x.x * self.width), self.width - 1)
+        row = dr.minimum(mi.UInt32(x.y * self.height), self.height - 1)
+        index = row * self.width + column
+        return [dr.gather(mi.Float64, c, index) for c in self.channels]
+
+
 def _rows_finite(f):
     """Rows of the package's answers ((n,) or (n, 3)) that are finite."""
     return np.isfinite(f) if f.ndim == 1 else np.all(np.isfinite(f), axis=1)
@@ -189,13 +213,13 @@ def register():
         Every parameter is checked (``ValueError`` naming it). F = 1. Sampling uses the glint
         sampler's three-number form u = (sample2.x, sample2.y, sample1), as the scalar plugin.
 
-        With maps, the smooth limit is the package's at the texture position (one row per
-        lane that needs it); a coloured tint answers in colour. A density or tint map leaves
-        the lobe the same everywhere: the sampler, its pdf and the negligible-query test stay
-        in Dr.Jit (the test of the material without maps bounds the mapped one's: a density
-        is at most 1). A roughness map varies the lobe over the surface: the sampler and its
-        pdf are then the package's at the texture position, and every footprint query goes
-        to the package.
+        With maps, f̂ is the package's and a coloured tint answers in colour. A density or tint
+        map leaves the lobe the same everywhere: the sampler, its pdf, the negligible-query
+        test (the material's without maps, which bounds the mapped one's: a density is at most
+        1) and the smooth limit d(uv)·t(uv)·f (the texels read as the package reads them) stay
+        in Dr.Jit. A roughness map varies the lobe over the surface: the sampler, its pdf and
+        the smooth limit are then the package's at the texture position (one row per lane that
+        needs one), and every footprint query goes to the package.
         """
 
         def __init__(self, props):
@@ -206,11 +230,17 @@ def register():
             self.coloured = not self.material.gray
             #: Whether the lobe varies over the surface (a roughness map): the package samples.
             self.lobe_varies = "alpha_map" in self.maps
+            #: The density and tint maps' texels in Dr.Jit, for the smooth limit of one lobe.
+            self.density = self.tint = None
             if self.lobe_varies:
                 self.lobe = Lobe(self.material._spec, None)
             else:
                 uniform = glint.Material(**self.params) if self.maps else self.material
                 self.lobe = Lobe(uniform._spec, uniform.negligible_test)
+                if "density_map" in self.maps:
+                    self.density = TexelLookup(self.maps["density_map"], fixed_point=True)
+                if "tint_map" in self.maps:
+                    self.tint = TexelLookup(self.maps["tint_map"])
             self.m_components = [flags]
             self.m_flags = flags
 
@@ -255,8 +285,8 @@ def register():
 
         def f_smooth_at(self, si, wo, index):
             """The package's smooth limit at the texture position (si.uv · uv_scale) of the
-            lanes ``index``, for a material with maps: (n,) or (n, 3) NumPy, 0 where the
-            package refuses the row."""
+            lanes ``index``, for a material with a roughness map: (n,) or (n, 3) NumPy, 0 where
+            the package refuses the row."""
             rows = _packed_rows(index, (si.wi, wo, si.uv))
             zero = np.zeros((len(rows), 2))
             r = self.material.eval(rows[:, 0:3], rows[:, 3:6], rows[:, 6:8] * self.uv_scale,
@@ -279,12 +309,24 @@ def register():
             # (none at a first hit, all after it).
             smooth = mi.Bool(active) & (~has | refused)
             lanes = dr.compress(smooth)
-            if dr.width(lanes) and self.maps:
+            if dr.width(lanes) and self.lobe_varies:
                 self._scatter(value, self.f_smooth_at(si, wo, lanes), lanes)
             elif dr.width(lanes):
-                dr.eval(si.wi, wo)
+                dr.eval(si.wi, wo, si.uv)
                 wi_s, wo_s = (mi.Vector3d(dr.gather(mi.Vector3f, v, lanes)) for v in (si.wi, wo))
-                dr.scatter(value, mi.Float(self.lobe.f_smooth(wi_s, wo_s)), lanes)
+                f = self.lobe.f_smooth(wi_s, wo_s)
+                if self.density is not None or self.tint is not None:
+                    # The one lobe's f times d(uv) and t(uv), as the package's smooth limit
+                    # (Σ_k d_k·f_k times t, one level).
+                    uv_s = mi.Vector2d(dr.gather(type(si.uv), si.uv, lanes)) * self.uv_scale
+                    if self.density is not None:
+                        f = f * self.density.at(uv_s)[0]
+                    if self.tint is not None:
+                        t = self.tint.at(uv_s)
+                        channels = range(3) if self.coloured else range(1)
+                        f = [t[c] * f for c in channels]
+                        f = mi.Color3f(*f) if self.coloured else f[0]
+                dr.scatter(value, f if self.coloured else mi.Float(f), lanes)
             return value
 
         def sample_at(self, si, sample1, sample2, active):

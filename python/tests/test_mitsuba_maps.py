@@ -226,19 +226,24 @@ def test_vectorized_plugin_answers_as_the_material_bit_for_bit(files, vectorized
 
 
 @needs_llvm
-def test_a_density_map_keeps_the_dr_jit_lobe_and_its_skips_exact(vectorized):
-    """A density map alone leaves the lobe in Dr.Jit, with the negligible-query test of the
-    material without maps: lanes it skips are ones the package answers 0, and f̂ on the
-    wavefront is the package's, bit for bit (queries near and away from the highlight, as in
-    test_mitsuba_vectorized's test of the skips)."""
+def test_density_and_tint_maps_keep_the_dr_jit_lobe_and_its_skips_exact(vectorized):
+    """A density map and a coloured tint (of another size) leave the lobe in Dr.Jit, with the
+    negligible-query test of the material without maps: lanes it skips are ones the package
+    answers 0, f̂ on the wavefront is the package's, bit for bit, and the smooth limit
+    d(uv)·t(uv)·f the package's to float32 rounding (queries near and away from the highlight,
+    as in test_mitsuba_vectorized's test of the skips)."""
     stripes = np.repeat(((np.arange(64) // 2) % 2).astype(np.float32)[:, None], 3, axis=1)
     stripes[5, 1] = 0.3
+    stripes[9, 0] = 0.7
+    tint = np.random.default_rng(1).uniform(0.1, 1.0, (7, 5, 3)).astype(np.float32)
     material = dict(particles=1e7, gamma_degrees=0.5, seed=2, negligible_count=1e-4)
     bsdf = mi.load_dict({"type": "glint", **material, "uv_scale": UV_SCALE,
                          "density_map": {"type": "bitmap", "bitmap": _grey(stripes),
-                                         "raw": True}})
-    assert not bsdf.lobe_varies and not bsdf.coloured and bsdf.lobe.negligible is not None
-    reference = glint.Material(**material, density_map=np.flipud(stripes.astype(np.float64)))
+                                         "raw": True},
+                         "tint_map": {"type": "bitmap", "bitmap": mi.Bitmap(tint)}})
+    assert not bsdf.lobe_varies and bsdf.coloured and bsdf.lobe.negligible is not None
+    reference = glint.Material(**material, density_map=np.flipud(stripes.astype(np.float64)),
+                               tint_map=np.flipud(tint.astype(np.float64)))
     rng = np.random.default_rng(3)
     n = 4000
     wi = rng.normal(size=(n, 3))
@@ -251,19 +256,27 @@ def test_a_density_map_keeps_the_dr_jit_lobe_and_its_skips_exact(vectorized):
     side = 10 ** rng.uniform(-4.5, -1.5, n)
     dx = np.stack([side, 0.3 * side * rng.normal(size=n)], 1)
     dy = np.stack([0.3 * side * rng.normal(size=n), side], 1)
-    uv = rng.uniform(0, 1, (n, 2))
+    uv = rng.uniform(-2, 3, (n, 2))
     wi, wo, uv, dx, dy = (np.asarray(a, dtype=np.float32) for a in (wi, wo, uv, dx, dy))
-    r = reference.eval(*(a.astype(np.float64) for a in (wi, wo)),
-                       *(a.astype(np.float64) * UV_SCALE for a in (uv, dx, dy)))
+    wi64, wo64 = wi.astype(np.float64), wo.astype(np.float64)
+    uv64, dx64, dy64 = (a.astype(np.float64) * UV_SCALE for a in (uv, dx, dy))
+    r = reference.eval(wi64, wo64, uv64, dx64, dy64)
     ok = r["error"] == ""
     si = _wavefront(wi, uv, dx, dy)
     w = mi.Vector3f(*[mi.Float(np.ascontiguousarray(wo[:, k])) for k in range(3)])
-    f = np.asarray(bsdf.brdf(si, w, mi.Bool(True)).numpy())
+    f = _colours(bsdf.brdf(si, w, mi.Bool(True)))
     assert np.array_equal(f[ok], np.float32(r["f_hat"][ok]))
     skipped = np.asarray(bsdf.lobe.skips(mi.Vector3d(si.wi), mi.Vector3d(w),
                                          *bsdf.footprint(si)[:3]).numpy())
-    assert skipped.mean() > 0.1 and np.sum(f > 0) > 10, (skipped.mean(), np.sum(f > 0))
+    assert skipped.mean() > 0.1 and np.sum(np.any(f > 0, axis=1)) > 10, skipped.mean()
     assert np.all(r["f_hat"][skipped] == 0)
+
+    zero = np.zeros_like(dx)
+    smooth = reference.eval(wi64, wo64, uv64, zero, zero)["f_smooth"]
+    f = _colours(bsdf.brdf(_wavefront(wi, uv, zero, zero), w, mi.Bool(True)))
+    masked = np.all(smooth == 0, axis=1)
+    assert 0.3 < masked.mean() < 0.7 and np.all(f[masked] == 0)
+    assert f == pytest.approx(smooth, rel=2e-6, abs=1e-30)
 
 
 def _material_maps(props, variant="scalar_rgb"):
