@@ -167,7 +167,7 @@ def glint_map(name, texels, kind):
     """The map ``glint.Material`` takes from ``texels`` (H, W, C) in the image's row order:
     (H, W) for data, (H, W, 3) for a tint, rows bottom first; every texel checked, naming the
     parameter and the texel (column, row from the image's top)."""
-    height, width, channels = texels.shape
+    channels = texels.shape[2]
     if kind == "data":
         if channels == 3:
             differ = (texels[:, :, 0] != texels[:, :, 1]) | (texels[:, :, 1] != texels[:, :, 2])
