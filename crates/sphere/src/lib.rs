@@ -66,7 +66,7 @@ pub mod triangle;
 pub use classify::Classification;
 pub use conic::{ConeRadius, ConicKind, SphericalConic};
 pub use error::SphereError;
-pub use overlap::{OverlapMethod, overlap_solid_angle};
+pub use overlap::{OverlapMethod, overlap_share_with_linear_density, overlap_solid_angle};
 pub use triangle::SphericalTriangle;
 
 /// Re-export of the vector type used throughout the public API.

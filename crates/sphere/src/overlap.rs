@@ -53,7 +53,7 @@ use glam::{DMat3, DVec2, DVec3};
 
 use crate::classify::Classification;
 use crate::conic::{ConicKind, SphericalConic, scaled_bilinear};
-use crate::quadrature::integrate;
+use crate::quadrature::{gauss_legendre_8, integrate};
 use crate::triangle::SphericalTriangle;
 
 /// How [`overlap_solid_angle`] measures the overlap of a triangle and a conic.
@@ -101,6 +101,45 @@ pub fn overlap_solid_angle(
     } else {
         // Unreachable for valid triangles; never hand a NaN to the count tree.
         0.5 * triangle_solid_angle
+    }
+}
+
+/// The share of a density's mass over `triangle` that lies in `conic`'s valid set, for a density
+/// that varies linearly across the triangle: `vertex_densities` are its values at the three
+/// vertices, and it is interpolated linearly in the plane of the vertices (as the planar
+/// overlap measures area there). Where p has a gradient across a cell, the overlap's share of
+/// the cell's solid angle misses it: on the flank of a lobe (Beckmann α = 0.1, a cell of 1°)
+/// p varies by a third across the cell, and shares by solid angle were 4% low in the mean.
+/// Exact for linear densities up to the planar approximation's error; 0 if the density's mass
+/// over the triangle is not positive. Always within [0, 1].
+#[must_use]
+pub fn overlap_share_with_linear_density(
+    triangle: &SphericalTriangle,
+    conic: &SphericalConic,
+    vertex_densities: [f64; 3],
+) -> f64 {
+    match conic.classify(triangle) {
+        Classification::Disjoint => return 0.0,
+        Classification::TriangleInsideConic => return 1.0,
+        Classification::ConicInsideTriangle | Classification::Partial => {}
+    }
+    let plane = TrianglePlane::new(triangle, conic);
+    let [_, v1, v2] = plane.vertices;
+    let [g0, g1, g2] = vertex_densities;
+    // f(u, v) = g0 + a·u + b·v through the vertices (0, 0), (u1, 0), (u2, v2).
+    let a = (g1 - g0) / v1.x;
+    let b = (g2 - g0 - a * v2.x) / v2.y;
+    let density = LinearDensity {
+        coefficients: DVec3::new(g0, a, b),
+    };
+    let inside = plane.overlap(conic, &density);
+    // A linear function's mean over a triangle is its mean at the vertices.
+    let total = 0.5 * v1.perp_dot(v2) * (g0 + g1 + g2) / 3.0;
+    let share = inside / total;
+    if share.is_finite() && total > 0.0 {
+        share.clamp(0.0, 1.0)
+    } else {
+        0.0
     }
 }
 
@@ -225,6 +264,42 @@ impl BoundaryIntegral for PlanarArea {
         let control_triangle = (control - arc.start).perp_dot(arc.end - arc.start).abs();
         // The chord, plus the segment between chord and arc (which bulges outward).
         0.5 * arc.start.perp_dot(arc.end) + conic_segment_ratio(weight) * 0.5 * control_triangle
+    }
+}
+
+/// A linear density f(u, v) = c₀ + c₁u + c₂v: ∮ F dv with F(u, v) = ∫₀ᵘ f ds
+/// = c₀u + c₁u²/2 + c₂uv. Along a line F is quadratic in the parameter, so Simpson's rule is
+/// exact; along an arc piece (weight 0.7–1.5, a smooth rational quadratic) the 8-point
+/// Gauss–Legendre rule is exact to far below the planar approximation's error.
+struct LinearDensity {
+    coefficients: DVec3,
+}
+
+impl LinearDensity {
+    fn potential(&self, p: DVec2) -> f64 {
+        let c = self.coefficients;
+        p.x * (c.x + 0.5 * c.y * p.x + c.z * p.y)
+    }
+}
+
+impl BoundaryIntegral for LinearDensity {
+    const MAX_ARC_WEIGHT: f64 = 1.5;
+
+    fn line(&self, start: DVec2, end: DVec2) -> f64 {
+        let middle = 0.5 * (start + end);
+        (self.potential(start) + 4.0 * self.potential(middle) + self.potential(end)) / 6.0
+            * (end.y - start.y)
+    }
+
+    fn arc(&self, arc: &RationalArc) -> f64 {
+        gauss_legendre_8(
+            &mut |t| {
+                let (point, velocity) = arc.point_and_velocity(t);
+                self.potential(point) * velocity.y
+            },
+            0.0,
+            1.0,
+        )
     }
 }
 
@@ -662,6 +737,106 @@ impl ConvexConicRegion {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn unit(theta: f64, phi: f64) -> DVec3 {
+        DVec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
+    }
+
+    /// Triangles of 0.5°–6° about the conics of ω_i, ω_o at 0°–80° (elliptic and hyperbolic),
+    /// some across the horizon, with the conic's boundary through them.
+    fn weighted_cases() -> Vec<(SphericalTriangle, SphericalConic)> {
+        let mut cases = Vec::new();
+        for (k, &(theta_i, theta_o, gamma_deg)) in [
+            (0.3, 0.2, 2.0f64),
+            (1.2, 1.3, 5.0),
+            (1.5, 1.4, 10.0),
+            (0.0, 0.05, 1.0),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let conic = SphericalConic::new(
+                unit(theta_i, 0.1),
+                unit(theta_o, 3.0),
+                gamma_deg.to_radians(),
+            )
+            .expect("conic");
+            let half = conic.wi() + conic.wo();
+            for size_deg in [0.5, 2.0, 6.0] {
+                let size = f64::to_radians(size_deg);
+                for shift in [-0.6, 0.0, 0.4] {
+                    // A triangle straddling the conic's edge near the half vector.
+                    let centre = (half.normalize()
+                        + conic.frame()[0] * (0.5 * gamma_deg.to_radians() + shift * size))
+                        .normalize();
+                    let [x, y, _] = conic.frame();
+                    let a = (centre + size * (x + 0.2 * y * k as f64)).normalize();
+                    let b = (centre + size * (-0.5 * x + 0.9 * y)).normalize();
+                    let c = (centre + size * (-0.4 * x - y)).normalize();
+                    if let Ok(t) = SphericalTriangle::new(a, b, c) {
+                        cases.push((t, conic));
+                    }
+                }
+            }
+        }
+        cases
+    }
+
+    /// ∫ f over the planar triangle's points in the conic, over ∫ f, on a barycentric grid.
+    fn weighted_share_by_grid(t: &SphericalTriangle, conic: &SphericalConic, g: [f64; 3]) -> f64 {
+        let [a, b, c] = t.vertices();
+        let steps = 600;
+        let (mut inside, mut total) = (0.0, 0.0);
+        for i in 0..steps {
+            for j in 0..steps - i {
+                let (x, y) = (
+                    (f64::from(i) + 1.0 / 3.0) / f64::from(steps),
+                    (f64::from(j) + 1.0 / 3.0) / f64::from(steps),
+                );
+                let weight = g[0] * (1.0 - x - y) + g[1] * x + g[2] * y;
+                let point = a + x * (b - a) + y * (c - a);
+                total += weight;
+                if conic.contains(point) {
+                    inside += weight;
+                }
+            }
+        }
+        inside / total
+    }
+
+    #[test]
+    fn a_constant_density_gives_the_planar_share() {
+        for (t, conic) in weighted_cases() {
+            let planar = overlap_solid_angle(&t, &conic, OverlapMethod::Planar) / t.solid_angle();
+            let weighted = overlap_share_with_linear_density(&t, &conic, [2.0; 3]);
+            assert!(
+                (planar - weighted).abs() < 1e-9,
+                "{planar} against {weighted}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_linear_density_weighs_the_overlap() {
+        let mut partial = 0;
+        for (t, conic) in weighted_cases() {
+            for g in [[1.0, 2.0, 3.0], [5.0, 0.1, 1.0], [0.0, 0.0, 1.0]] {
+                let exact = overlap_share_with_linear_density(&t, &conic, g);
+                let grid = weighted_share_by_grid(&t, &conic, g);
+                // The grid's error: about one row of cells along the boundary.
+                assert!(
+                    (exact - grid).abs() < 2e-3,
+                    "{exact} against the grid's {grid}"
+                );
+                partial += usize::from(exact > 0.01 && exact < 0.99);
+            }
+        }
+        assert!(partial >= 12, "only {partial} cases cut the triangle");
+    }
 
     #[test]
     fn segment_ratio_is_continuous_through_the_parabola() {

@@ -9,7 +9,7 @@ const GAUSS_LEGENDRE_8: [(f64, f64); 4] = [
 ];
 
 /// The 8-point rule on [a, b].
-fn gauss_legendre_8(f: &mut impl FnMut(f64) -> f64, a: f64, b: f64) -> f64 {
+pub(crate) fn gauss_legendre_8(f: &mut impl FnMut(f64) -> f64, a: f64, b: f64) -> f64 {
     let mid = 0.5 * (a + b);
     let half = 0.5 * (b - a);
     let mut sum = 0.0;
