@@ -7,7 +7,7 @@ use glam::{DVec2, DVec3};
 use glint_sphere::SphericalConic;
 use glint_tree::sampling::{MultinomialMode, multinomial4, multinomial4_equal};
 use glint_tree::tea::TeaRng;
-use glint_tree::{CountTree, CountTreeConfig, Footprint, NormalDensity, QueryScratch};
+use glint_tree::{CountTree, CountTreeConfig, DenseCounts, Footprint, NormalDensity, QueryScratch};
 use statrs::distribution::{ChiSquared, ContinuousCDF, Discrete};
 
 use crate::SplitMix64;
@@ -138,6 +138,7 @@ pub fn beckmann_tree(
         seed,
         epsilon,
         multinomial: mode,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     CountTree::new(config, beckmann_density(alpha, alpha)).expect("valid configuration")

@@ -12,6 +12,8 @@
 
 #[cfg(feature = "checkers")]
 pub mod counts;
+#[cfg(feature = "checkers")]
+pub mod dense;
 pub mod geometry;
 pub mod light_cones;
 #[cfg(feature = "checkers")]

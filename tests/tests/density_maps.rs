@@ -9,13 +9,14 @@ use glam::DVec2;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{beckmann_density, queries_in_threads, whole_and_halves};
 use glint_tests::maps::{count_cases, disc, mapped_count_sums, square_mass, test_conic, test_maps};
-use glint_tree::{CountTree, CountTreeConfig, DensityMap, Footprint, QueryScratch};
+use glint_tree::{CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, QueryScratch};
 
 fn tree(particles: u64, epsilon: f64, seed: u64, map: Option<DensityMap>) -> CountTree {
     let config = CountTreeConfig {
         particles,
         seed,
         epsilon,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     CountTree::with_density_map(config, beckmann_density(0.2, 0.2), map.map(Arc::new)).unwrap()
@@ -141,6 +142,7 @@ fn a_map_of_ones_is_no_map_bit_for_bit() {
             seed: 4,
             epsilon,
             colour_channels: channels,
+            dense: DenseCounts::Exact,
             ..CountTreeConfig::default()
         };
         let density = beckmann_density(0.3, 0.3);

@@ -3,6 +3,7 @@
 //! Sizes here fit `cargo test`; `cargo xtask validate` runs the same checkers at full size.
 
 mod brdf;
+mod dense;
 mod density_maps;
 mod footprints;
 mod light_cones;

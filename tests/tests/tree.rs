@@ -12,7 +12,9 @@ use glint_tests::counts::{
     overlapping_pair_counts, queries_in_threads, whole_and_halves,
 };
 use glint_tests::geometry::direction;
-use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
+use glint_tree::{
+    CountTree, CountTreeConfig, DenseCounts, Footprint, MultinomialMode, QueryScratch,
+};
 
 fn near_specular_conic(gamma_deg: f64) -> SphericalConic {
     SphericalConic::new(
@@ -68,6 +70,7 @@ fn remembered_counts_and_leaves_change_no_answer() {
         particles: 100_000_000,
         seed: 7,
         colour_channels: 3,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     let other_coloured = CountTreeConfig {
@@ -167,6 +170,7 @@ fn crowded_leaves_count_every_particle_once() {
             particles,
             max_depth: 0,
             colour_channels,
+            dense: DenseCounts::Exact,
             ..CountTreeConfig::default()
         };
         let tree = CountTree::new(config, glint_tests::counts::beckmann_density(0.3, 0.3)).unwrap();
@@ -323,6 +327,7 @@ fn slivers_across_many_tiles_keep_the_work_bound() {
     let config = CountTreeConfig {
         particles: 1_000_000_000_000_000,
         epsilon: 0.0,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     let budget = config.node_budget;
@@ -363,6 +368,7 @@ fn extreme_parameters_give_finite_bounded_answers() {
                 epsilon,
                 multinomial: MultinomialMode::Normal,
                 node_budget: 20_000,
+                dense: DenseCounts::Exact,
                 ..CountTreeConfig::default()
             };
             let tree =
@@ -449,6 +455,7 @@ fn particle_areas_have_the_mean_of_counts() {
         seed: 4,
         epsilon: 0.0,
         colour_channels: 3,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     let tree = CountTree::new(config, glint_tests::counts::beckmann_density(0.3, 0.3)).unwrap();
@@ -493,6 +500,7 @@ fn top_level_cache_is_invisible() {
             epsilon,
             colour_channels: 3,
             cached_levels: levels,
+            dense: DenseCounts::Exact,
             ..CountTreeConfig::default()
         };
         let tree =
@@ -515,6 +523,7 @@ fn top_level_cache_is_invisible() {
     }
     let too_deep = CountTreeConfig {
         cached_levels: 9,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     assert!(CountTree::new(too_deep, glint_tests::counts::beckmann_density(0.1, 0.1)).is_err());
@@ -583,6 +592,7 @@ fn many_tile_footprints_are_averaged_within_their_measured_error() {
     let config = CountTreeConfig {
         particles: 1_000_000,
         epsilon: 0.0,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     let density = glint_tests::counts::beckmann_density(0.2, 0.2);

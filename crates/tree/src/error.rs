@@ -16,6 +16,12 @@ pub enum TreeError {
         /// The rejected value.
         epsilon: f64,
     },
+    /// The dense regime's node scale must be in (0, 1]: the largest node drawn, as a fraction
+    /// of the query's size.
+    InvalidDenseNodeScale {
+        /// The rejected value.
+        node_scale: f64,
+    },
     /// The expected query area and solid angle (Eq. 11) must be finite and > 0.
     InvalidExpectedQuery,
     /// The quadrature tolerances δ_abs, δ_rel must be finite and ≥ 0.
@@ -58,6 +64,11 @@ impl fmt::Display for TreeError {
                     "epsilon = {epsilon:?} is invalid: it must be in [0, 1] (a relative error; 0 = exact)"
                 )
             }
+            Self::InvalidDenseNodeScale { node_scale } => write!(
+                f,
+                "dense node scale {node_scale:?} is invalid: it must be in (0, 1] (the largest \
+                 node drawn, as a fraction of the query's size)"
+            ),
             Self::InvalidExpectedQuery => write!(
                 f,
                 "expected query area and solid angle must be finite and > 0"

@@ -357,6 +357,18 @@ impl Footprint {
         }
     }
 
+    /// The footprint's narrowest width: its area over its longer edge (the distance between
+    /// the two lines parallel to that edge).
+    #[must_use]
+    pub fn narrowest_width(&self) -> f64 {
+        let longest = self.dx.length().max(self.dy.length());
+        if longest > 0.0 {
+            self.area / longest
+        } else {
+            0.0
+        }
+    }
+
     /// The integer translates (i, j) of [min, max] whose bounding boxes meet the footprint's:
     /// none, at most four (a footprint below a tile, the common case), or more.
     fn candidate_translates(&self, min: DVec2, max: DVec2) -> Candidates {

@@ -56,7 +56,7 @@ pub use ndf::{DirectionalCell, NdfQuadrature, NormalDensity, QuadratureTolerance
 pub use node::NodeId;
 pub use sampling::MultinomialMode;
 pub use tree::{
-    CountTree, CountTreeConfig, DirectionalLawExcess, LEAF_CELL_ARC, LEAF_PARTICLES,
-    MAX_CACHED_LEVELS, MAX_PARTICLES, ManyTiles, QueryResult, QueryScratch,
-    expected_conic_solid_angle,
+    CountTree, CountTreeConfig, DENSE_MIN_PARTICLES, DenseCounts, DirectionalLawExcess,
+    LEAF_CELL_ARC, LEAF_PARTICLES, MAX_CACHED_LEVELS, MAX_PARTICLES, ManyTiles, QueryResult,
+    QueryScratch, VIRTUAL_PARTICLES, expected_conic_solid_angle,
 };

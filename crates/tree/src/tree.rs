@@ -24,13 +24,16 @@ use crate::ndf::{DirectionalSplits, NdfQuadrature, NormalDensity, QuadratureTole
 use crate::sampling::MultinomialMode;
 use crate::tea::DEFAULT_ROUNDS;
 
+mod dense;
 mod law;
 mod particles;
 mod query;
 mod scratch;
 mod spine;
 
+pub use dense::{DENSE_MIN_PARTICLES, DenseCounts, VIRTUAL_PARTICLES};
 pub use law::DirectionalLawExcess;
+use law::LeafShare;
 use particles::{DescentStep, Node};
 pub use particles::{LEAF_CELL_ARC, LEAF_PARTICLES};
 pub use query::QueryResult;
@@ -53,8 +56,12 @@ pub struct CountTreeConfig {
     pub particles: u64,
     /// The material seed.
     pub seed: u64,
-    /// ε of Eq. 10 (0 = exact evaluation; the paper uses 0.1).
+    /// ε of Eq. 10 (0 = exact evaluation; the paper uses 0.1): a partial node whose binomial
+    /// spread is below ε × the count adds its expected share.
     pub epsilon: f64,
+    /// How partial nodes at the query's scale are answered when they hold many particles:
+    /// resolved, or from their rescaled virtual samples (the dense regime, `dense`).
+    pub dense: DenseCounts,
     /// Exact multinomial splits or the paper's normal approximation.
     pub multinomial: MultinomialMode,
     /// How partial nodes' directional overlap is measured when ε > 0.
@@ -136,7 +143,7 @@ impl Default for ManyTiles {
 }
 
 impl Default for CountTreeConfig {
-    /// N = 10⁶, seed 0, ε = 0.1, exact multinomials, planar overlaps, a footprint of 10⁻⁶
+    /// N = 10⁶, seed 0, ε = 0.1, sampled dense nodes up to twice the query's scale, exact multinomials, planar overlaps, a footprint of 10⁻⁶
     /// (a pixel of ~1000² over the texture) and the conic of γ = 1° at normal incidence,
     /// δ = 1e-5, 8 TEA cycles, depth guard 64, 6 cached levels, node budget 10⁶, no colour,
     /// footprints over more than 256 tiles (or spanning 4096) averaged.
@@ -146,6 +153,7 @@ impl Default for CountTreeConfig {
             particles: 1_000_000,
             seed: 0,
             epsilon: 0.1,
+            dense: DenseCounts::DEFAULT,
             multinomial: MultinomialMode::Exact,
             overlap: OverlapMethod::Planar,
             expected_query_area: 1e-6,
@@ -269,6 +277,11 @@ impl CountTree {
             return Err(TreeError::InvalidEpsilon {
                 epsilon: config.epsilon,
             });
+        }
+        if let DenseCounts::Sampled { node_scale } = config.dense
+            && !config.dense.is_valid()
+        {
+            return Err(TreeError::InvalidDenseNodeScale { node_scale });
         }
         let positive = |x: f64| x > 0.0 && x.is_finite();
         if !(positive(config.expected_query_area) && positive(config.expected_query_solid_angle)) {

@@ -17,11 +17,12 @@
 //! children and their counts come from the particle set's definition (`super::particles`).
 
 use glam::DVec2;
-use glint_sphere::{Classification, SphericalConic, overlap_solid_angle};
+use glint_sphere::{Classification, SphericalConic};
 
+use super::dense::{DenseWork, PartialNode};
 use super::particles::{DRAWN_AREAS_DEPTH, LEAF_PARTICLES, Node, quarter_min};
 use super::scratch::QueryMemo;
-use super::{CountTree, QueryScratch};
+use super::{CountTree, LeafShare, QueryScratch};
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
 
@@ -162,6 +163,7 @@ impl CountTree {
         // total N·A·∫p (what the count converges to) is the scale: from the start for
         // footprints of a tile or more, after SCALE_AFTER_NODES nodes for the others.
         let mut scale_floor = None;
+        let dense_scales = self.dense_scales(footprint, conic);
         // Every node in the queue meets the query (disjoint children are dropped when created)
         // and has been counted in `visited`.
         // Breadth first, a level at a time: the queue holds one level while its children
@@ -188,6 +190,31 @@ impl CountTree {
                     accumulate(&mut area_sums, self.areas_of(node, memo), multiplicity);
                     continue;
                 }
+                // The dense regime: a node at the query's scale holding many particles answers
+                // from its rescaled sample.
+                let varying_map = (spatial.partial > 0)
+                    .then_some(self.density_map.as_deref())
+                    .flatten()
+                    .filter(|map| !map.is_constant_over(node.box_min, node.box_size()));
+                let partial = PartialNode {
+                    node,
+                    spatial,
+                    directional,
+                    varying_map,
+                };
+                let work = DenseWork {
+                    memo,
+                    cells,
+                    in_footprint,
+                };
+                if let Some(sampled) =
+                    self.sampled_count(dense_scales, &partial, footprint, conic, work)
+                {
+                    count += sampled;
+                    let share = sampled / node.count as f64;
+                    accumulate(&mut area_sums, self.areas_of(node, memo), share);
+                    continue;
+                }
                 // Eq. 10. Its binomial spread needs the fraction of the node's particles in the
                 // query: in space they are uniform; in direction the fraction is the overlap's
                 // share of the triangle where p is near-uniform (no table entry, the paper's
@@ -203,16 +230,13 @@ impl CountTree {
                 // particles are not uniform over the box: their mean multiplicity is the
                 // map-weighted one (`None` where the box spans too many texels to weigh: the
                 // node is then split rather than estimated, but at the guards).
-                let varying_map = (spatial.partial > 0)
-                    .then_some(self.density_map.as_deref())
-                    .flatten()
-                    .filter(|map| !map.is_constant_over(node.box_min, node.box_size()));
                 let expected_share = |memo: &mut QueryMemo, cells: &mut Vec<DirectionalCell>| {
                     let directional = if directions_inside {
                         1.0
                     } else {
                         memo.directional_fraction(&node.cell, |memo| {
-                            self.directional_fraction(node, conic, cells, memo)
+                            let leaf = LeafShare::SolidAngle(self.config.overlap);
+                            self.directional_fraction(node, conic, leaf, cells, memo)
                         })
                     };
                     let multiplicity = varying_map.and_then(|map| {
@@ -247,8 +271,15 @@ impl CountTree {
                     continue;
                 }
                 if node.count <= LEAF_PARTICLES || node.depth >= self.config.max_depth {
-                    let (found, areas) =
-                        self.count_leaf(node, directional, footprint, conic, memo, in_footprint);
+                    let (found, areas) = self.count_leaf(
+                        node,
+                        directional,
+                        footprint,
+                        conic,
+                        memo,
+                        in_footprint,
+                        self.config.colour_channels,
+                    );
                     count += found;
                     accumulate(&mut area_sums, areas, 1.0);
                     continue;
@@ -455,25 +486,20 @@ impl CountTree {
     }
 
     /// The share of `node`'s particles whose normals lie in the conic: the overlap's share of
-    /// the triangle where p is near-uniform (no table entry), else ∫p over the overlap by the
-    /// table divided by ∫p over the triangle.
-    fn directional_fraction(
+    /// the triangle by `leaf` where Alg. 2's table has no entry, else ∫p over the overlap by
+    /// the table divided by ∫p over the triangle.
+    pub(super) fn directional_fraction(
         &self,
         node: &Node,
         conic: &SphericalConic,
+        leaf: LeafShare,
         cells: &mut Vec<DirectionalCell>,
         memo: &mut QueryMemo,
     ) -> f64 {
         if let (Some(t), false) = (&node.cell.triangle, self.quadrature.has_entry(&node.cell)) {
-            return overlap_solid_angle(t, conic, self.config.overlap) / node.solid_angle;
+            return self.leaf_share(t, node.solid_angle, conic, leaf);
         }
-        let inside = self.integral_over_conic_within(
-            &node.cell,
-            conic,
-            self.config.overlap,
-            cells,
-            Some(memo),
-        );
+        let inside = self.integral_over_conic_within(&node.cell, conic, leaf, cells, Some(memo));
         let total = self.quadrature.integral_with_solid_angle(
             &node.cell,
             node.solid_angle,

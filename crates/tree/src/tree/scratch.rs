@@ -261,18 +261,41 @@ impl QueryMemo {
         cell: &DirectionalCell,
         compute: impl FnOnce(&mut Self) -> f64,
     ) -> f64 {
+        self.fraction_by_key(cell, 0, compute)
+    }
+
+    /// [`QueryMemo::directional_fraction`] by the dense regime's rule (p linear across the
+    /// table's leaf cells), memoized apart from it.
+    #[inline]
+    pub(super) fn dense_conic_share(
+        &mut self,
+        cell: &DirectionalCell,
+        compute: impl FnOnce(&mut Self) -> f64,
+    ) -> f64 {
+        self.fraction_by_key(cell, 1 << 63, compute)
+    }
+
+    /// Memoized by the cell's label with `rule` in its top bit (labels stay below 2⁶³).
+    #[inline]
+    fn fraction_by_key(
+        &mut self,
+        cell: &DirectionalCell,
+        rule: u64,
+        compute: impl FnOnce(&mut Self) -> f64,
+    ) -> f64 {
         // Labels name cells uniquely to this depth (deeper ones share a saturated label).
         if cell.depth >= DirectionalCell::MAX_LABELLED_DEPTH {
             return compute(self);
         }
-        let slot = memo_slot(cell.label, FRACTION_MEMO_BITS);
+        let key = cell.label | rule;
+        let slot = memo_slot(key, FRACTION_MEMO_BITS);
         let entry = self.fractions[slot];
-        if entry.generation == self.generation && entry.label == cell.label {
+        if entry.generation == self.generation && entry.label == key {
             return entry.fraction;
         }
         let fraction = compute(self);
         self.fractions[slot] = FractionEntry {
-            label: cell.label,
+            label: key,
             generation: self.generation,
             fraction,
         };

@@ -227,8 +227,11 @@ impl CountTree {
     }
 
     /// Counts a leaf's particles (positions one by one, normals by [`Self::normals_in_conic`]);
-    /// returns (count, area sums). `directional` is the
-    /// conic's classification of the leaf's cell; `in_footprint` is reused working memory.
+    /// returns (count, area sums). `directional` is the conic's classification of the leaf's
+    /// cell; `channels` the colour channels whose particle areas are summed (the material's,
+    /// or 0 for a dense node's virtual sample, whose areas are not drawn); `in_footprint` is
+    /// reused working memory.
+    #[allow(clippy::too_many_arguments)]
     pub(in crate::tree) fn count_leaf(
         &self,
         node: &Node,
@@ -237,9 +240,9 @@ impl CountTree {
         conic: &SphericalConic,
         memo: &mut QueryMemo,
         in_footprint: &mut Vec<LeafParticle>,
+        channels: usize,
     ) -> (f64, [f64; 3]) {
         let box_size = node.box_size();
-        let channels = self.config.colour_channels;
         let key = node.id.key(self.config.seed);
         let rounds = self.config.tea_rounds;
         // Each particle's share of the node's area, per channel: Dirichlet(1, …, 1) as

@@ -1,0 +1,208 @@
+//! The dense regime: a node that the query meets in part, holds many particles and is not much
+//! larger than the query is answered from a small sample of its law, rescaled so that the
+//! count keeps the exact counts' mean and covariances, instead of being split down to its
+//! particles.
+//!
+//! # The rescaled sample
+//! The tree is a hierarchical sampler of independent particles: given a node's count n, its
+//! particles are n independent points of the node's law ν (positions over the box by the
+//! density map, normals over the cell by p). For any query region R, the exact count
+//! X(R) = Σᵢ 1[xᵢ ∈ R] (with multiplicity across tiles) then has, given n,
+//!
+//! ```text
+//!   E X(R) = n·ν(R),    Cov(X(R), X(R′)) = n·(ν(R ∩ R′) − ν(R)·ν(R′)).
+//! ```
+//!
+//! The node's *virtual sample* is M = [`VIRTUAL_PARTICLES`] points of the same law, placed
+//! exactly as a leaf places its particles (the node's own leaf streams, unused by a node of
+//! more than [`super::LEAF_PARTICLES`] particles), and so the same for every query. With k(R)
+//! the sample's points in R and w = n/M, the node contributes
+//!
+//! ```text
+//!   Y(R) = √w·k(R) + (n − √(n·M))·ν(R)          (= n·ν(R) + √w·(k(R) − M·ν(R)))
+//! ```
+//!
+//! whose mean is n·ν(R) and whose covariance is w·M·(ν(R ∩ R′) − ν(R)ν(R′)), the exact one,
+//! for every pair of regions at once: the same footprint moved by part of its width, a
+//! neighbouring footprint (disjoint parts of one node are negatively correlated, as exact
+//! counts are), the conic moved with the light or the view. A footprint moving inside a node
+//! larger than itself still changes its count: the sample's points are spread over the box.
+//! Y is continuous in the query as exact counts are (it steps by √w where a sample point
+//! crosses the query's edge, where an exact count steps by 1 per particle), lies in [0, n],
+//! and is deterministic (the sample depends on the node alone).
+//!
+//! What it does not keep: the law's higher moments. The count's skewness and its lattice are
+//! the sample's, coarser by √w; across the many nodes a dense query adds, they average out.
+//! The mean needs ν(R) itself: the footprint's share of the box (or its map-weighted share),
+//! times the cell's share of p in the conic with p linear across Alg. 2's leaf cells
+//! ([`super::LeafShare::LinearDensity`]: by solid angle, shares were 4% low on a lobe's flank).
+//!
+//! # Which nodes
+//! A partial node is answered this way when it holds at least [`DENSE_MIN_PARTICLES`] and its
+//! cell is at most `node_scale`·γ across (√Ω; γ/2 is the conic's minor half-axis) and its box
+//! at most 4·`node_scale` footprint widths, each unless the query holds the node in that
+//! dimension. Larger nodes split as before: the sample's M points over a node much larger than
+//! the query would leave only a point or two in it, the variance right but its shape coarse.
+//! So the cost is bounded by the query's shape, not by N: the nodes answered are those of the
+//! query's boundary at its own scale.
+
+use glint_sphere::{Classification, SphericalConic};
+
+use super::particles::{LEAF_PARTICLES, LeafParticle, Node};
+use super::scratch::QueryMemo;
+use super::{CountTree, LeafShare};
+use crate::density_map::DensityMap;
+use crate::footprint::{BoxOverlap, Footprint};
+use crate::ndf::DirectionalCell;
+
+/// The virtual sample's size M: a leaf's capacity, so that the leaf machinery places and
+/// remembers it.
+pub const VIRTUAL_PARTICLES: u64 = LEAF_PARTICLES;
+
+/// Nodes with fewer particles are resolved exactly: a sample of M = 32 stands for at least
+/// four times as many (w ≥ 4), or it saves little over the node's own leaves.
+pub const DENSE_MIN_PARTICLES: u64 = 4 * VIRTUAL_PARTICLES;
+
+/// How a query answers the nodes it meets in part (see the module `dense`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DenseCounts {
+    /// Every partly covered node is split down to its particles: exact counts, at a cost that
+    /// grows with the particles along the query's boundary.
+    Exact,
+    /// A partly covered node of at least [`DENSE_MIN_PARTICLES`] particles, with its cell at
+    /// most `node_scale`·γ across and its box at most 4·`node_scale` footprint widths, adds
+    /// its rescaled virtual sample's count: the exact counts' mean and covariances at a cost
+    /// bounded whatever N. Larger `node_scale`: fewer nodes, coarser counts.
+    Sampled {
+        /// The largest node answered from its sample, in widths of the query (0 < s ≤ 16).
+        node_scale: f64,
+    },
+}
+
+impl DenseCounts {
+    /// The default: samples of nodes up to twice the conic's width.
+    pub const DEFAULT: Self = Self::Sampled { node_scale: 2.0 };
+
+    /// Whether the setting is valid (node_scale in (0, 16]).
+    #[must_use]
+    pub fn is_valid(&self) -> bool {
+        match *self {
+            Self::Exact => true,
+            Self::Sampled { node_scale } => node_scale > 0.0 && node_scale <= 16.0,
+        }
+    }
+}
+
+impl Default for DenseCounts {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// The largest nodes a query answers from their samples.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct DenseScales {
+    max_box_side: f64,
+    max_cell_solid_angle: f64,
+}
+
+/// What a sampled answer needs from the query loop about one node.
+pub(super) struct PartialNode<'a> {
+    pub(super) node: &'a Node,
+    pub(super) spatial: BoxOverlap,
+    pub(super) directional: Classification,
+    /// The density map where it varies over the node's box (the box's share is then weighed).
+    pub(super) varying_map: Option<&'a DensityMap>,
+}
+
+/// The query's working memory that a sampled answer uses.
+pub(super) struct DenseWork<'a> {
+    pub(super) memo: &'a mut QueryMemo,
+    pub(super) cells: &'a mut Vec<DirectionalCell>,
+    pub(super) in_footprint: &'a mut Vec<LeafParticle>,
+}
+
+impl CountTree {
+    /// The largest nodes this query answers from their samples, if the material samples them.
+    pub(super) fn dense_scales(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+    ) -> Option<DenseScales> {
+        let DenseCounts::Sampled { node_scale } = self.config.dense else {
+            return None;
+        };
+        let cell_across = node_scale * conic.gamma();
+        Some(DenseScales {
+            max_box_side: 4.0 * node_scale * footprint.narrowest_width(),
+            // A cell of the tree's near-equilateral triangles with solid angle Ω is about √Ω
+            // across.
+            max_cell_solid_angle: cell_across * cell_across,
+        })
+    }
+
+    /// Y(R) of the module docs for `partial`, if the node is dense and small enough against the
+    /// query; `None` to split it.
+    pub(super) fn sampled_count(
+        &self,
+        scales: Option<DenseScales>,
+        partial: &PartialNode,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        work: DenseWork,
+    ) -> Option<f64> {
+        let scales = scales?;
+        let PartialNode {
+            node,
+            spatial,
+            directional,
+            varying_map,
+        } = *partial;
+        let directions_inside = directional == Classification::TriangleInsideConic;
+        let size = node.box_size();
+        if node.count < DENSE_MIN_PARTICLES
+            || (spatial.partial > 0 && size > scales.max_box_side)
+            || (!directions_inside
+                && (directional == Classification::ConicInsideTriangle
+                    || node.solid_angle > scales.max_cell_solid_angle))
+        {
+            return None;
+        }
+        // ν(R): the particles' mean multiplicity in the footprint times the cell's share of p
+        // in the conic.
+        let multiplicity = match varying_map {
+            _ if spatial.partial == 0 => spatial.inside as f64,
+            Some(map) => map.mean_multiplicity(footprint, node.box_min, size)?,
+            None => footprint.overlap_area(node.box_min, size) / (size * size),
+        };
+        let DenseWork {
+            memo,
+            cells,
+            in_footprint,
+        } = work;
+        let in_conic = if directions_inside {
+            1.0
+        } else {
+            memo.dense_conic_share(&node.cell, |memo| {
+                self.directional_fraction(node, conic, LeafShare::LinearDensity, cells, memo)
+            })
+        };
+        let share = multiplicity * in_conic;
+        let sample = Node {
+            count: VIRTUAL_PARTICLES,
+            ..*node
+        };
+        let (found, _) = self.count_leaf(
+            &sample,
+            directional,
+            footprint,
+            conic,
+            memo,
+            in_footprint,
+            0,
+        );
+        let n = node.count as f64;
+        let m = VIRTUAL_PARTICLES as f64;
+        Some((n / m).sqrt() * found + (n - (n * m).sqrt()) * share)
+    }
+}

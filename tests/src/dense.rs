@@ -1,0 +1,73 @@
+//! What a viewer sees of dense counts, measured the same way for every setting of the dense
+//! regime (`glint_tree::DenseCounts`) and for exact counts: one highlight conic (Beckmann
+//! α = 0.1, γ = 1°) over square footprints of side 10⁻³ at random positions. The mean and the
+//! dispersion (variance/mean: 1 − A·q ≈ 1 for exact counts), and the correlation of a
+//! footprint's count with the same footprint moved by half its width (exact counts: their
+//! overlap, ½), with its right-hand neighbour (disjoint: about 0) and with the same footprint
+//! under the conic of ω_o turned by γ (the light or the view moving; exact counts: about 0.41).
+
+use glam::{DQuat, DVec2, DVec3};
+use glint_sphere::SphericalConic;
+use glint_tree::{CountTree, Footprint, QueryScratch};
+
+use crate::SplitMix64;
+use crate::counts::{correlation, highlight_query, mean_and_variance};
+
+/// The footprints' side (texture units): a pixel of a 1000-pixel-wide view of the square.
+pub const SIDE: f64 = 1e-3;
+
+/// The statistics of [`dense_statistics`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DenseStatistics {
+    /// Mean count.
+    pub mean: f64,
+    /// Variance over mean.
+    pub dispersion: f64,
+    /// Correlation with the footprint moved by half its width.
+    pub shifted: f64,
+    /// Correlation with the neighbouring footprint (moved by its width).
+    pub neighbour: f64,
+    /// Correlation with the same footprint under the conic moved by about half its width.
+    pub conic_moved: f64,
+}
+
+/// The conic of the statistics and the same conic with ω_o turned by γ (the half vector, and
+/// with it the conic, moves by about γ/2: half the conic's minor axis γ).
+#[must_use]
+pub fn conic_and_moved() -> (SphericalConic, SphericalConic) {
+    let gamma = 1f64.to_radians();
+    let (_, conic) = highlight_query(0.1, gamma, SIDE, &mut SplitMix64::new(99));
+    let axis = conic.wo().cross(DVec3::Z).normalize();
+    let wo = DQuat::from_axis_angle(axis, gamma) * conic.wo();
+    let moved = SphericalConic::new(conic.wi(), wo, gamma).expect("a valid conic");
+    (conic, moved)
+}
+
+/// The statistics of `tree`'s counts over `positions` random footprint positions (`seed`).
+#[must_use]
+pub fn dense_statistics(tree: &CountTree, positions: usize, seed: u64) -> DenseStatistics {
+    let (conic, moved) = conic_and_moved();
+    let square = |uv: DVec2| {
+        Footprint::new(uv, DVec2::new(SIDE, 0.0), DVec2::new(0.0, SIDE)).expect("finite")
+    };
+    let mut scratch = QueryScratch::new();
+    let mut rng = SplitMix64::new(seed);
+    let mut count =
+        |uv: DVec2, conic: &SphericalConic| tree.query(&square(uv), conic, &mut scratch).count;
+    let (mut base, mut shifted, mut neighbour, mut conic_moved) = (vec![], vec![], vec![], vec![]);
+    for _ in 0..positions {
+        let uv = DVec2::new(rng.uniform(), rng.uniform());
+        base.push(count(uv, &conic));
+        shifted.push(count(uv + DVec2::new(0.5 * SIDE, 0.0), &conic));
+        neighbour.push(count(uv + DVec2::new(SIDE, 0.0), &conic));
+        conic_moved.push(count(uv, &moved));
+    }
+    let (mean, variance) = mean_and_variance(&base);
+    DenseStatistics {
+        mean,
+        dispersion: variance / mean,
+        shifted: correlation(&base, &shifted),
+        neighbour: correlation(&base, &neighbour),
+        conic_moved: correlation(&base, &conic_moved),
+    }
+}
