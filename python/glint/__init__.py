@@ -118,15 +118,20 @@ class Material:
     [1e-4, 1] (None: the same as ``alpha``), ``particles`` N per unit texture square (a whole
     number in [1, 2^53]), ``gamma_degrees`` the cone radius γ in degrees ([5.73e-5, 60], 1 by
     default; ``gamma_deg``, its older name, still works, deprecated),
-    ``epsilon`` of Eq. 10 in [0, 1] (0 = exact counts), ``seed`` the particle set (a whole
+    ``epsilon`` of Eq. 10 in [0, 1] (0 = off; 0.1, the paper's, by default: it acts only on
+    nodes the dense regime does not sample), ``seed`` the particle set (a whole
     number in [0, 2^64), taken exactly), ``fresnel`` (None, ``{"conductor": {"eta": [r, g, b],
     "k": [r, g, b]}}`` or ``{"dielectric": {"eta": x}}``, η in [1e-3, 1e3] and k in [0, 1e3];
     NumPy scalars and arrays are accepted), ``multinomial`` ("exact" or "normal"),
     ``negligible_count`` (skip queries whose expected count is provably below it: 1e-12 by
     default, glint-tracer's τ; 0 = never, every query traversed),
     and, keyword only, ``expected_footprint_area`` (Eq. 11), ``pdf_quadrature`` (the
-    sampler pdf's rule over the cone: "cubature", the default, or "qmc", the paper's) and
-    ``pdf_points`` (its QMC points, in [1, 4096]).
+    sampler pdf's rule over the cone: "cubature", the default, or "qmc", the paper's),
+    ``pdf_points`` (its QMC points, in [1, 4096]), ``dense`` ("sampled", the default: partly
+    covered nodes at the query's scale that hold many particles answer from a rescaled sample,
+    with the exact counts' mean and correlations at a bounded cost; or "exact": every particle
+    resolved) and ``dense_node_scale`` (the largest node sampled, in widths of the query, in
+    (0, 16]; 2 by default).
 
     Maps vary the material over its texture square (keyword only; NumPy arrays, row 0 at the
     top of the texture, v from 1 − 1/H to 1, column 0 starting at u = 0, each texel constant
@@ -146,7 +151,7 @@ class Material:
                  gamma_deg=None, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
                  negligible_count=1e-12, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
                  pdf_points=64, gamma_degrees=None, density_map=None, alpha_map=None,
-                 tint_map=None, roughness_levels=8):
+                 tint_map=None, roughness_levels=8, dense="sampled", dense_node_scale=2.0):
         if gamma_deg is not None:
             if gamma_degrees is not None:
                 raise ValueError("give gamma_degrees or gamma_deg (its older name), not both")
@@ -168,6 +173,8 @@ class Material:
                                                expected_footprint_area),
             "pdf_quadrature": _name("pdf_quadrature", pdf_quadrature),
             "pdf_points": _finite("pdf_points", pdf_points),
+            "dense": _name("dense", dense),
+            "dense_node_scale": _finite("dense_node_scale", dense_node_scale),
         }
         if alpha_y is not None:
             spec["alpha_y"] = _finite("alpha_y", alpha_y)

@@ -74,7 +74,8 @@ def material_parameters(props):
         negligible_count=get("negligible_count", 1e-12),
         expected_footprint_area=get("expected_footprint_area", 1e-6),
         pdf_quadrature=get("pdf_quadrature", "cubature"), pdf_points=get("pdf_points", 64),
-        roughness_levels=get("roughness_levels", 8))
+        roughness_levels=get("roughness_levels", 8), dense=get("dense", "sampled"),
+        dense_node_scale=get("dense_node_scale", 2.0))
     maps, sources = maps_from_properties(props)
     return params, maps, sources, uv_scale
 
@@ -180,6 +181,10 @@ def register():
            * - epsilon, seed, multinomial
              - float, int, string
              - 0.1, 0, exact
+             - as ``glint.Material``
+           * - dense, dense_node_scale
+             - string, float
+             - sampled, 2
              - as ``glint.Material``
            * - negligible_count
              - float

@@ -46,8 +46,8 @@ use std::sync::Arc;
 use glam::{DVec2, DVec3};
 use glint_sphere::{ConeRadius, SphericalConic};
 use glint_tree::{
-    CountTree, CountTreeConfig, DensityMap, Footprint, LEAF_CELL_ARC, MultinomialMode, QueryResult,
-    QueryScratch, expected_conic_solid_angle,
+    CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, LEAF_CELL_ARC, MultinomialMode,
+    QueryResult, QueryScratch, expected_conic_solid_angle,
 };
 
 use crate::bxdf::{Bxdf, BxdfSample};
@@ -69,7 +69,8 @@ use crate::surface_maps::{RoughnessLevel, RoughnessMap, TintMap, WeightedTint, r
 /// | `distribution` | D and its roughness (α_x, α_y) | — |
 /// | `particles` | N, flakes per unit texture square | 10⁶ |
 /// | `gamma_radians` | the cone radius γ in radians, in [10⁻⁶, 60°] (C, Python, `eval` and scene files take `gamma_degrees`) | 1° |
-/// | `epsilon` | ε of Eq. 10 (0 = exact) | 0.1 |
+/// | `epsilon` | ε of Eq. 10: a partial node whose binomial spread is below ε × the count adds its expected share (0 = off) | 0.1 |
+/// | `dense` | how dense partial nodes at the query's scale are answered: rescaled samples ([`DenseCounts::Sampled`], the exact counts' mean and correlations at a bounded cost) or every particle ([`DenseCounts::Exact`]) | sampled, node scale 2 |
 /// | `seed` | the particle set | 0 |
 /// | `fresnel` | F | none (F = 1) |
 /// | `multinomial` | exact splits or the paper's normal approximation | exact |
@@ -93,8 +94,11 @@ pub struct GlintParameters {
     pub particles: u64,
     /// The cone radius γ in radians, in [10⁻⁶, 60°] (`1f64.to_radians()` for 1°).
     pub gamma_radians: f64,
-    /// ε of Eq. 10 (0 = exact).
+    /// ε of Eq. 10 (0 = off: no partial node is replaced by its expected share).
     pub epsilon: f64,
+    /// How partial nodes at the query's scale that hold many particles are answered (the
+    /// dense regime of `glint_tree`).
+    pub dense: DenseCounts,
     /// The material seed.
     pub seed: u64,
     /// The Fresnel term.
@@ -129,7 +133,8 @@ pub struct GlintParameters {
 }
 
 impl GlintParameters {
-    /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, seed 0, F = 1,
+    /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, dense nodes
+    /// answered from their samples (node scale 2) before Eq. 10 is asked, seed 0, F = 1,
     /// exact multinomials, no colour, α_s = 2α, cubature rules for the sampling pdf
     /// (64 QMC points when switched to QMC), footprints of 10⁻⁶, every
     /// query traversed (no negligible-query test), no maps (8 roughness levels for one).
@@ -140,6 +145,7 @@ impl GlintParameters {
             particles: 1_000_000,
             gamma_radians: 1f64.to_radians(),
             epsilon: 0.1,
+            dense: DenseCounts::DEFAULT,
             seed: 0,
             fresnel: Fresnel::None,
             multinomial: MultinomialMode::Exact,
@@ -294,6 +300,7 @@ impl Layer {
             particles: parameters.particles,
             seed: layer_seed(parameters.seed, k),
             epsilon: parameters.epsilon,
+            dense: parameters.dense,
             multinomial: parameters.multinomial,
             expected_query_area: parameters.expected_footprint_area,
             expected_query_solid_angle: expected_conic_solid_angle(gamma),

@@ -71,7 +71,7 @@ pub use glam::{DVec2, DVec3};
 pub use glint::{GlintBxdf, GlintEvaluation};
 pub use glint_sampling::PdfQuadrature;
 pub use glint_tree::{
-    DensityMap, DensityMapError, Footprint, MultinomialMode, QueryScratch, TreeError,
+    DenseCounts, DensityMap, DensityMapError, Footprint, MultinomialMode, QueryScratch, TreeError,
 };
 pub use map_budget::{MAX_MAP_BYTES, MapBytes};
 pub use smooth::MicrofacetBrdf;

@@ -137,7 +137,7 @@ typedef struct GlintScratch GlintScratch;
  * | `alpha_x`, `alpha_y` | 0.1 | [1e-4, 1] |
  * | `particles` | 1e6 | a whole number in [1, 2^53] |
  * | `gamma_degrees` | 1 | [5.73e-5, 60] (1e-6 rad to 60 degrees) |
- * | `epsilon` | 0.1 | [0, 1] (0 = exact counts) |
+ * | `epsilon` | 0 | [0, 1]: Eq. 10's early stop (0 = off) |
  * | `seed` | 0 | any |
  * | `fresnel` | `GLINT_FRESNEL_NONE` | a `GlintFresnel` |
  * | `conductor_eta`, `conductor_k` | {1, 1, 1}, {0, 0, 0} | eta in [1e-3, 1e3], k in [0, 1e3] |
@@ -151,6 +151,8 @@ typedef struct GlintScratch GlintScratch;
  * | `alpha_map`, `_width`, `_height` | NULL, 0, 0 | values in [1e-4, 1] |
  * | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
  * | `roughness_levels` | 8 | 1 to 64 |
+ * | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
+ * | `dense_node_scale` | 2 | (0, 16]: the largest node sampled, in widths of the query |
  *
  * A map has width × height ≤ 2^24 texels, row 0 at the top of the texture; it is copied, so
  * the caller's array may be freed once `glint_material_new` returns. A bad texel is an error
@@ -181,7 +183,7 @@ typedef struct GlintMaterialParams {
   double gamma_degrees;
   /**
    * ε of Eq. 10: a partly covered node whose expected error is below ε times the count so
-   * far adds its expected share instead of splitting (0 = exact counts).
+   * far adds its expected share instead of splitting (0 = off).
    */
   double epsilon;
   /**
@@ -269,6 +271,14 @@ typedef struct GlintMaterialParams {
    * K, the most roughness levels of a roughness map (exact up to K distinct values).
    */
   uint32_t roughness_levels;
+  /**
+   * How dense partly covered nodes are answered: a `GlintDense`.
+   */
+  uint32_t dense;
+  /**
+   * The largest node `GLINT_DENSE_SAMPLED` answers from its sample, in widths of the query.
+   */
+  double dense_node_scale;
 } GlintMaterialParams;
 
 /**

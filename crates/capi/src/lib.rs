@@ -60,9 +60,9 @@ use std::ptr;
 use std::sync::atomic::AtomicBool;
 
 use glint_brdf::{
-    Bxdf, BxdfSample, DVec2, DVec3, DensityMap, DiscreteBrdf, DistributionKind, Footprint, Fresnel,
-    GlintBxdf, GlintParameters, Microfacet, MultinomialMode, PdfQuadrature, QueryScratch,
-    TreeError,
+    Bxdf, BxdfSample, DVec2, DVec3, DenseCounts, DensityMap, DiscreteBrdf, DistributionKind,
+    Footprint, Fresnel, GlintBxdf, GlintParameters, Microfacet, MultinomialMode, PdfQuadrature,
+    QueryScratch, TreeError,
 };
 use glint_eval::{MapSpec, MapsSpec};
 
@@ -71,7 +71,7 @@ use crate::boundary::{
     write_slice,
 };
 pub use crate::types::{
-    GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
+    GlintDense, GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
     GlintMaterialParams, GlintMultinomial, GlintPdfQuadrature, GlintSample, GlintScratch,
     GlintStatus,
 };
@@ -601,6 +601,8 @@ impl Default for GlintMaterialParams {
             tint_map_width: 0,
             tint_map_height: 0,
             roughness_levels: 8,
+            dense: GlintDense::GLINT_DENSE_SAMPLED as u32,
+            dense_node_scale: 2.0,
         }
     }
 }
@@ -681,6 +683,8 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
     const CONDUCTOR: u32 = GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32;
     const DIELECTRIC: u32 = GlintFresnel::GLINT_FRESNEL_DIELECTRIC as u32;
     const EXACT: u32 = GlintMultinomial::GLINT_MULTINOMIAL_EXACT as u32;
+    const SAMPLED: u32 = GlintDense::GLINT_DENSE_SAMPLED as u32;
+    const EXACT_DENSE: u32 = GlintDense::GLINT_DENSE_EXACT as u32;
     const NORMAL: u32 = GlintMultinomial::GLINT_MULTINOMIAL_NORMAL as u32;
     const CUBATURE: u32 = GlintPdfQuadrature::GLINT_PDF_CUBATURE as u32;
     const QMC: u32 = GlintPdfQuadrature::GLINT_PDF_QMC as u32;
@@ -719,6 +723,17 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
             )));
         }
     };
+    let dense = match p.dense {
+        SAMPLED => DenseCounts::Sampled {
+            node_scale: p.dense_node_scale,
+        },
+        EXACT_DENSE => DenseCounts::Exact,
+        other => {
+            return Err(Failure::parameter(format!(
+                "dense = {other} is invalid: use GLINT_DENSE_SAMPLED or GLINT_DENSE_EXACT"
+            )));
+        }
+    };
     let pdf_quadrature = match p.pdf_quadrature {
         CUBATURE => PdfQuadrature::Cubature,
         QMC => PdfQuadrature::QuasiMonteCarlo,
@@ -743,6 +758,7 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
         particles: p.particles as u64,
         gamma_radians: p.gamma_degrees.to_radians(),
         epsilon: p.epsilon,
+        dense,
         seed: p.seed,
         fresnel,
         multinomial,
@@ -769,6 +785,7 @@ fn field_of(error: glint_brdf::BrdfError, p: &GlintMaterialParams) -> &'static s
         E::InvalidNegligibleCount { .. } => "negligible_count",
         E::InvalidPdfPoints { .. } => "pdf_points",
         E::Tree(TreeError::InvalidEpsilon { .. }) => "epsilon",
+        E::Tree(TreeError::InvalidDenseNodeScale { .. }) => "dense_node_scale",
         E::InvalidExpectedFootprintArea { .. } | E::Tree(TreeError::InvalidExpectedQuery) => {
             "expected_footprint_area"
         }

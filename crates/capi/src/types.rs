@@ -66,6 +66,18 @@ pub enum GlintMultinomial {
     GLINT_MULTINOMIAL_NORMAL = 1,
 }
 
+/// How dense partly covered nodes are answered (`GlintMaterialParams::dense`).
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(non_camel_case_types)]
+pub enum GlintDense {
+    /// Nodes at the query's scale that hold many particles answer from a rescaled sample of
+    /// 32 of them: the exact counts' mean and correlations at a cost bounded whatever N.
+    GLINT_DENSE_SAMPLED = 0,
+    /// Every particle resolved (exact counts; the cost grows with N).
+    GLINT_DENSE_EXACT = 1,
+}
+
 /// How the sampler's pdf integrates over the cone of radius γ.
 #[repr(u32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,7 +99,7 @@ pub enum GlintPdfQuadrature {
 /// | `alpha_x`, `alpha_y` | 0.1 | [1e-4, 1] |
 /// | `particles` | 1e6 | a whole number in [1, 2^53] |
 /// | `gamma_degrees` | 1 | [5.73e-5, 60] (1e-6 rad to 60 degrees) |
-/// | `epsilon` | 0.1 | [0, 1] (0 = exact counts) |
+/// | `epsilon` | 0.1 | [0, 1]: Eq. 10's early stop (0 = off) |
 /// | `seed` | 0 | any |
 /// | `fresnel` | `GLINT_FRESNEL_NONE` | a `GlintFresnel` |
 /// | `conductor_eta`, `conductor_k` | {1, 1, 1}, {0, 0, 0} | eta in [1e-3, 1e3], k in [0, 1e3] |
@@ -101,6 +113,8 @@ pub enum GlintPdfQuadrature {
 /// | `alpha_map`, `_width`, `_height` | NULL, 0, 0 | values in [1e-4, 1] |
 /// | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
 /// | `roughness_levels` | 8 | 1 to 64 |
+/// | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
+/// | `dense_node_scale` | 2 | (0, 16]: the largest node sampled, in widths of the query |
 ///
 /// A map has width × height ≤ 2^24 texels, row 0 at the top of the texture; it is copied, so
 /// the caller's array may be freed once `glint_material_new` returns. A bad texel is an error
@@ -121,7 +135,7 @@ pub struct GlintMaterialParams {
     /// γ, the radius of the cone around the outgoing direction, in degrees.
     pub gamma_degrees: f64,
     /// ε of Eq. 10: a partly covered node whose expected error is below ε times the count so
-    /// far adds its expected share instead of splitting (0 = exact counts).
+    /// far adds its expected share instead of splitting (0 = off).
     pub epsilon: f64,
     /// Which particle set.
     pub seed: u64,
@@ -168,6 +182,10 @@ pub struct GlintMaterialParams {
     pub tint_map_height: u32,
     /// K, the most roughness levels of a roughness map (exact up to K distinct values).
     pub roughness_levels: u32,
+    /// How dense partly covered nodes are answered: a `GlintDense`.
+    pub dense: u32,
+    /// The largest node `GLINT_DENSE_SAMPLED` answers from its sample, in widths of the query.
+    pub dense_node_scale: f64,
 }
 
 /// A pixel's texture-space footprint: the parallelogram

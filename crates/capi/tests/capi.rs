@@ -10,7 +10,7 @@ use std::ffi::CStr;
 use std::ptr;
 
 use glint::{
-    GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
+    GlintDense, GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
     GlintMaterialParams, GlintMultinomial, GlintSample, GlintScratch, GlintStatus, glint_eval,
     glint_eval_batch, glint_eval_smooth, glint_eval_smooth_at, glint_expected_count,
     glint_last_error, glint_material_free, glint_material_new, glint_material_params_default,
@@ -442,6 +442,10 @@ fn defaults_are_glint_parameters_new_with_evals_negligible_count() {
     assert_eq!(p.distribution, GlintDistribution::GLINT_BECKMANN as u32);
     assert_eq!((p.alpha_x, p.alpha_y, p.particles), (0.1, 0.1, 1e6));
     assert_eq!((p.gamma_degrees, p.epsilon, p.seed), (1.0, 0.1, 0));
+    assert_eq!(
+        (p.dense, p.dense_node_scale),
+        (GlintDense::GLINT_DENSE_SAMPLED as u32, 2.0)
+    );
     assert_eq!(p.fresnel, GlintFresnel::GLINT_FRESNEL_NONE as u32);
     assert_eq!(
         p.multinomial,
@@ -458,6 +462,20 @@ fn invalid_parameters_are_named() {
     let bad_alpha = [0.1, 0.1, 0.1, 0.0];
     let bad_tint = [0.5; 12].map(|x| x * 3.0);
     let cases: Vec<(GlintMaterialParams, &str)> = vec![
+        (
+            GlintMaterialParams {
+                dense: 7,
+                ..defaults
+            },
+            "dense",
+        ),
+        (
+            GlintMaterialParams {
+                dense_node_scale: 0.0,
+                ..defaults
+            },
+            "dense_node_scale",
+        ),
         (
             GlintMaterialParams {
                 density_map: bad_density.as_ptr(),

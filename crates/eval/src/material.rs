@@ -2,8 +2,8 @@
 //! the messages that name a rejected field.
 
 use glint_brdf::{
-    BrdfError, DVec3, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters, Microfacet,
-    MultinomialMode, PdfQuadrature,
+    BrdfError, DVec3, DenseCounts, DiscreteBrdf, DistributionKind, Fresnel, GlintParameters,
+    Microfacet, MultinomialMode, PdfQuadrature,
 };
 use serde_json::{Map, Value};
 
@@ -51,6 +51,11 @@ pub struct MaterialSpec {
     pub gamma_degrees: f64,
     /// ε of Eq. 10; defaults to 0.1.
     pub epsilon: Option<f64>,
+    /// How dense nodes are answered: `"sampled"` (the default) or `"exact"`.
+    pub dense: Option<String>,
+    /// The largest node `"sampled"` answers from its sample, in widths of the query; defaults
+    /// to 2.
+    pub dense_node_scale: Option<f64>,
     /// The particle set, any 64-bit unsigned number; defaults to 0.
     pub seed: Option<u64>,
     /// The Fresnel term.
@@ -72,7 +77,7 @@ pub struct MaterialSpec {
 }
 
 /// The fields a JSON material may hold.
-const KNOWN_FIELDS: [&str; 18] = [
+const KNOWN_FIELDS: [&str; 20] = [
     MAP_FIELDS[0],
     MAP_FIELDS[1],
     MAP_FIELDS[2],
@@ -84,6 +89,8 @@ const KNOWN_FIELDS: [&str; 18] = [
     "gamma_degrees",
     "gamma_deg",
     "epsilon",
+    "dense",
+    "dense_node_scale",
     "seed",
     "fresnel",
     "multinomial",
@@ -104,6 +111,8 @@ impl MaterialSpec {
             particles,
             gamma_degrees,
             epsilon: None,
+            dense: None,
+            dense_node_scale: None,
             seed: None,
             fresnel: FresnelSpec::None,
             multinomial: None,
@@ -180,6 +189,13 @@ impl MaterialSpec {
             }
             parameters.pdf_points = points as usize;
         }
+        let node_scale = self
+            .dense_node_scale
+            .map(|scale| finite(scale, "material.dense_node_scale"))
+            .transpose()?;
+        parameters.dense =
+            DenseCounts::from_name(self.dense.as_deref().unwrap_or("sampled"), node_scale)
+                .map_err(|e| format!("material: {e}"))?;
         parameters.multinomial = match self.multinomial.as_deref() {
             None | Some("exact") => MultinomialMode::Exact,
             Some("normal") => MultinomialMode::Normal,
@@ -244,6 +260,15 @@ impl MaterialSpec {
                 ));
             }
         };
+        let dense = match m.get("dense") {
+            None => None,
+            Some(Value::String(s)) => Some(s.clone()),
+            Some(other) => {
+                return Err(format!(
+                    "material.dense {other} is unknown: use \"sampled\" or \"exact\""
+                ));
+            }
+        };
         let pdf_quadrature = match m.get("pdf_quadrature") {
             None => None,
             Some(Value::String(s)) => Some(s.clone()),
@@ -260,6 +285,8 @@ impl MaterialSpec {
             particles: particles_from_json(m)?,
             gamma_degrees: gamma_degrees_from_json(m)?,
             epsilon: optional_number(m, "epsilon", "material.epsilon")?,
+            dense,
+            dense_node_scale: optional_number(m, "dense_node_scale", "material.dense_node_scale")?,
             seed: seed_from_json(m.get("seed"))?,
             fresnel: fresnel_from_json(m.get("fresnel"))?,
             multinomial,

@@ -16,12 +16,14 @@ pub enum TreeError {
         /// The rejected value.
         epsilon: f64,
     },
-    /// The dense regime's node scale must be in (0, 1]: the largest node drawn, as a fraction
-    /// of the query's size.
+    /// The dense regime's node scale must be in (0, 16]: the largest node answered from its
+    /// sample, in widths of the query.
     InvalidDenseNodeScale {
         /// The rejected value.
         node_scale: f64,
     },
+    /// The dense regime's mode must be one of `DenseCounts::NAMES`.
+    UnknownDenseMode,
     /// The expected query area and solid angle (Eq. 11) must be finite and > 0.
     InvalidExpectedQuery,
     /// The quadrature tolerances δ_abs, δ_rel must be finite and ≥ 0.
@@ -66,8 +68,13 @@ impl fmt::Display for TreeError {
             }
             Self::InvalidDenseNodeScale { node_scale } => write!(
                 f,
-                "dense node scale {node_scale:?} is invalid: it must be in (0, 1] (the largest \
-                 node drawn, as a fraction of the query's size)"
+                "dense_node_scale = {node_scale:?} is invalid: it must be in (0, 16] (the \
+                 largest node answered from its sample, in widths of the query)"
+            ),
+            Self::UnknownDenseMode => write!(
+                f,
+                "dense must be \"sampled\" (the default: dense nodes answer from rescaled \
+                 samples) or \"exact\" (every particle resolved)"
             ),
             Self::InvalidExpectedQuery => write!(
                 f,

@@ -143,7 +143,8 @@ impl Default for ManyTiles {
 }
 
 impl Default for CountTreeConfig {
-    /// N = 10⁶, seed 0, ε = 0.1, sampled dense nodes up to twice the query's scale, exact multinomials, planar overlaps, a footprint of 10⁻⁶
+    /// N = 10⁶, seed 0, ε = 0.1, dense nodes answered from their samples up to twice the
+    /// query's scale, exact multinomials, planar overlaps, a footprint of 10⁻⁶
     /// (a pixel of ~1000² over the texture) and the conic of γ = 1° at normal incidence,
     /// δ = 1e-5, 8 TEA cycles, depth guard 64, 6 cached levels, node budget 10⁶, no colour,
     /// footprints over more than 256 tiles (or spanning 4096) averaged.

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use glint_brdf::{DiscreteBrdf, GlintParameters, MultinomialMode, PdfQuadrature};
+use glint_brdf::{DenseCounts, DiscreteBrdf, GlintParameters, MultinomialMode, PdfQuadrature};
 use serde::Deserialize;
 
 use super::SCENE_NEGLIGIBLE_COUNT;
@@ -42,6 +42,9 @@ pub(super) struct GlintSection {
     /// `gamma_degrees`'s older name, still read (deprecated); both at once are an error.
     gamma: Option<f64>,
     epsilon: Option<f64>,
+    /// "sampled" (the default) or "exact".
+    dense: Option<String>,
+    dense_node_scale: Option<f64>,
     seed: Option<u64>,
     fresnel: Option<FresnelSection>,
     multinomial: Option<MultinomialName>,
@@ -148,6 +151,18 @@ impl Builder<'_> {
         if let Some(epsilon) = g.epsilon {
             parameters.epsilon = epsilon;
         }
+        let dense = g.dense.as_deref().unwrap_or("sampled");
+        parameters.dense = match DenseCounts::from_name(dense, g.dense_node_scale) {
+            Ok(dense) => dense,
+            Err(e) => {
+                let name = if g.dense_node_scale.is_some() && DenseCounts::NAMES.contains(&dense) {
+                    "dense_node_scale"
+                } else {
+                    "dense"
+                };
+                return self.fail(format!("{field}.{name}"), e.to_string());
+            }
+        };
         parameters.seed = g.seed.unwrap_or(0);
         parameters.fresnel = self.fresnel(&format!("{field}.fresnel"), g.fresnel.as_ref())?;
         parameters.multinomial = match g.multinomial {

@@ -52,6 +52,7 @@ use super::particles::{LEAF_PARTICLES, LeafParticle, Node};
 use super::scratch::QueryMemo;
 use super::{CountTree, LeafShare};
 use crate::density_map::DensityMap;
+use crate::error::TreeError;
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::ndf::DirectionalCell;
 
@@ -80,8 +81,43 @@ pub enum DenseCounts {
 }
 
 impl DenseCounts {
-    /// The default: samples of nodes up to twice the conic's width.
+    /// The default: samples of nodes up to twice the query's width.
     pub const DEFAULT: Self = Self::Sampled { node_scale: 2.0 };
+
+    /// The default `node_scale` of [`DenseCounts::Sampled`].
+    pub const DEFAULT_NODE_SCALE: f64 = 2.0;
+
+    /// The names every interface spells the modes with: "sampled" and "exact".
+    pub const NAMES: [&'static str; 2] = ["sampled", "exact"];
+
+    /// The mode named `name` (one of [`DenseCounts::NAMES`]) with `node_scale` (used by
+    /// "sampled"; `None` for the default).
+    ///
+    /// # Errors
+    /// [`TreeError::UnknownDenseMode`] for another name, [`TreeError::InvalidDenseNodeScale`]
+    /// for a node scale outside (0, 16].
+    pub fn from_name(name: &str, node_scale: Option<f64>) -> Result<Self, TreeError> {
+        let node_scale = node_scale.unwrap_or(Self::DEFAULT_NODE_SCALE);
+        let mode = match name {
+            "sampled" => Self::Sampled { node_scale },
+            "exact" => Self::Exact,
+            _ => return Err(TreeError::UnknownDenseMode),
+        };
+        if mode.is_valid() {
+            Ok(mode)
+        } else {
+            Err(TreeError::InvalidDenseNodeScale { node_scale })
+        }
+    }
+
+    /// The mode's name (see [`DenseCounts::NAMES`]).
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Sampled { .. } => "sampled",
+            Self::Exact => "exact",
+        }
+    }
 
     /// Whether the setting is valid (node_scale in (0, 16]).
     #[must_use]
