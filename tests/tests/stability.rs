@@ -15,7 +15,7 @@
 
 use glam::{DVec2, DVec3};
 use glint_brdf::{
-    DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters, Microfacet,
+    DenseCounts, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters, Microfacet,
     MultinomialMode, QueryScratch,
 };
 use glint_tests::geometry::direction;
@@ -33,8 +33,15 @@ struct Case {
     wo: (f64, f64),
 }
 
+/// The pins' base material: the paper's ε = 0.1 and exact counts, as the pins were taken
+/// with (the library's defaults are now ε = 0 and sampled dense nodes; those have a case of
+/// their own).
 fn beckmann(alpha: f64) -> GlintParameters {
-    GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, alpha, alpha).unwrap())
+    GlintParameters {
+        epsilon: 0.1,
+        dense: DenseCounts::Exact,
+        ..GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, alpha, alpha).unwrap())
+    }
 }
 
 fn cases() -> Vec<Case> {
@@ -80,6 +87,7 @@ fn cases() -> Vec<Case> {
             material: || GlintParameters {
                 particles: 10_000,
                 epsilon: 0.0,
+                dense: DenseCounts::Exact,
                 gamma_radians: 8f64.to_radians(),
                 ..GlintParameters::new(Microfacet::new(DistributionKind::Ggx, 0.3, 0.3).unwrap())
             },
@@ -95,6 +103,8 @@ fn cases() -> Vec<Case> {
                 multinomial: MultinomialMode::Normal,
                 seed: 11,
                 particles: 100_000_000,
+                epsilon: 0.1,
+                dense: DenseCounts::Exact,
                 ..GlintParameters::new(
                     Microfacet::new(DistributionKind::Beckmann, 0.05, 0.2).unwrap(),
                 )
@@ -170,11 +180,25 @@ fn cases() -> Vec<Case> {
             wi: (1.45, 0.0),
             wo: (1.45, std::f64::consts::PI - 0.05),
         },
+        Case {
+            name: "dense nodes sampled (the defaults: ε = 0.1, node scale 2), N = 10¹²",
+            material: || GlintParameters {
+                particles: 1_000_000_000_000,
+                ..GlintParameters::new(
+                    Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap(),
+                )
+            },
+            uv: [0.37, 0.81],
+            duv_dx: [1e-3, 0.0],
+            duv_dy: [0.0, 1e-3],
+            wi,
+            wo,
+        },
     ]
 }
 
 /// count, then f̂ per channel, for each case in order.
-const PINNED: [(f64, [f64; 3]); 10] = [
+const PINNED: [(f64, [f64; 3]); 11] = [
     (
         6.0,
         [7.506622317930054, 7.506622317930054, 7.506622317930054],
@@ -211,6 +235,10 @@ const PINNED: [(f64, [f64; 3]); 10] = [
     (
         1.0,
         [1.044527871544571, 1.044527871544571, 1.044527871544571],
+    ),
+    (
+        7940.2445871138825,
+        [8.940662584117858, 8.940662584117858, 8.940662584117858],
     ),
 ];
 

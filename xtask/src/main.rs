@@ -40,6 +40,8 @@ mod validate_brdf;
 #[cfg(feature = "full")]
 mod validate_counts;
 #[cfg(feature = "full")]
+mod validate_dense;
+#[cfg(feature = "full")]
 mod validate_footprints;
 #[cfg(feature = "full")]
 mod validate_light_cones;

@@ -3,7 +3,7 @@
 //! Suites so far: **geometry** (glint-sphere), **counts** (glint-tree, in
 //! `validate_counts.rs`), **BRDF** (glint-brdf, in `validate_brdf.rs`), **stability** (the
 //! extremes matrix, `validate_stability.rs`) and **trade** (speed against accuracy, with a
-//! Pareto plot, `validate_trade.rs`) and **renders** (images against the smooth limit and
+//! Pareto plot, `validate_trade.rs`; the dense regime, `validate_dense.rs`) and **renders** (images against the smooth limit and
 //! against exact evaluation, `validate_render.rs`) and **maps** (counts under density maps and
 //! the roughness levels' trade, `validate_maps.rs`). Each check prints one line and adds a section to
 //! `report.md`; the command fails if any check fails.
@@ -126,6 +126,10 @@ pub(crate) fn run(quick: bool, out: &Path, only: Option<&str>) -> anyhow::Result
         (
             "trade",
             Box::new(|r| crate::validate_trade::trade(quick, out, r)),
+        ),
+        (
+            "trade: dense glitter",
+            Box::new(|r| crate::validate_dense::dense(quick, r)),
         ),
         (
             "trade: pdf quadrature",

@@ -20,7 +20,8 @@ use glint_sphere::OverlapMethod;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{beckmann_density, highlight_query, mean_and_variance};
 use glint_tree::{
-    CountTree, CountTreeConfig, Footprint, MultinomialMode, QuadratureTolerance, QueryScratch,
+    CountTree, CountTreeConfig, DenseCounts, Footprint, MultinomialMode, QuadratureTolerance,
+    QueryScratch,
 };
 
 use crate::plot::{Plot, Series};
@@ -92,6 +93,8 @@ fn tree(setting: &Setting, particles: u64) -> anyhow::Result<CountTree> {
         particles,
         seed: 77,
         epsilon: setting.epsilon,
+        // ε's own trade, on exact counts (the dense regime's is `validate_dense`).
+        dense: DenseCounts::Exact,
         multinomial: setting.multinomial,
         overlap: setting.overlap,
         expected_query_area: 1e-6,
