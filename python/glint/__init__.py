@@ -131,7 +131,7 @@ class Material:
     covered nodes at the query's scale that hold many particles answer from a rescaled sample,
     with the exact counts' mean and correlations at a bounded cost; or "exact": every particle
     resolved) and ``dense_node_scale`` (the largest node sampled, in widths of the query, in
-    (0, 16]; 2 by default).
+    (0, 16]; 1 by default: larger is faster and lumpier).
 
     Maps vary the material over its texture square (keyword only; NumPy arrays, row 0 at the
     top of the texture, v from 1 − 1/H to 1, column 0 starting at u = 0, each texel constant
@@ -151,7 +151,7 @@ class Material:
                  gamma_deg=None, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
                  negligible_count=1e-12, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
                  pdf_points=64, gamma_degrees=None, density_map=None, alpha_map=None,
-                 tint_map=None, roughness_levels=8, dense="sampled", dense_node_scale=2.0):
+                 tint_map=None, roughness_levels=8, dense="sampled", dense_node_scale=1.0):
         if gamma_deg is not None:
             if gamma_degrees is not None:
                 raise ValueError("give gamma_degrees or gamma_deg (its older name), not both")

@@ -69,7 +69,7 @@ class GlintBSDF(mi.BSDF):
     deprecated), ``epsilon`` (0.1), ``seed`` (0), ``multinomial``
     ("exact"), ``negligible_count`` (1e-12), ``expected_footprint_area`` (1e-6),
     ``pdf_quadrature`` ("cubature", or "qmc"), ``pdf_points`` (64), ``dense`` ("sampled", or
-    "exact"), ``dense_node_scale`` (2), ``roughness_levels`` (8;
+    "exact"), ``dense_node_scale`` (1), ``roughness_levels`` (8;
     without an ``alpha_map`` it changes nothing): as ``glint.Material``, which checks them (an
     invalid one raises ``ValueError`` naming it); ``uv_scale`` (1): texture repetitions per
     unit of the shape's (u, v), positive and finite, as in the scene files. F = 1 (no Fresnel).

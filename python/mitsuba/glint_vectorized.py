@@ -75,7 +75,7 @@ def material_parameters(props):
         expected_footprint_area=get("expected_footprint_area", 1e-6),
         pdf_quadrature=get("pdf_quadrature", "cubature"), pdf_points=get("pdf_points", 64),
         roughness_levels=get("roughness_levels", 8), dense=get("dense", "sampled"),
-        dense_node_scale=get("dense_node_scale", 2.0))
+        dense_node_scale=get("dense_node_scale", 1.0))
     maps, sources = maps_from_properties(props)
     return params, maps, sources, uv_scale
 
@@ -184,7 +184,7 @@ def register():
              - as ``glint.Material``
            * - dense, dense_node_scale
              - string, float
-             - sampled, 2
+             - sampled, 1
              - as ``glint.Material``
            * - negligible_count
              - float

@@ -18,28 +18,30 @@ fn tree(particles: f64, dense: DenseCounts) -> CountTree {
     CountTree::new(config, beckmann_density(0.1, 0.1)).expect("valid configuration")
 }
 
-const SAMPLED: DenseCounts = DenseCounts::Sampled { node_scale: 2.0 };
+const SAMPLED: DenseCounts = DenseCounts::DEFAULT;
 
-/// At N = 10¹⁰ (18 particles per footprint on this conic; nodes of ≥ 128 particles at its
+/// At N = 10¹¹ (180 particles per footprint on this conic; nodes of ≥ 128 particles at its
 /// scale are sampled) the sampled counts have the exact counts' mean, dispersion and
-/// correlations, over the same positions. Tolerances: about 4 standard errors of 1000
-/// positions (a correlation's is about 0.03, a dispersion's 0.045); `cargo xtask validate`
-/// measures the same at 8000 positions and N up to 10¹⁵ (docs/performance.md).
+/// correlations, over the same positions. The two runs share the tree's coarse counts but not
+/// the sampled ones, so the tolerances are about four standard errors of the difference of
+/// two estimates from 1000 positions (a mean's 0.3%, a dispersion's 0.063, a correlation's
+/// 0.045); `cargo xtask validate` measures the same at 8000 positions and N up to 10¹⁵
+/// (docs/performance.md, "Dense glitter").
 #[test]
 fn sampled_counts_keep_the_exact_statistics() {
-    let exact = dense_statistics(&tree(1e10, DenseCounts::Exact), 1000, 5);
-    let sampled = dense_statistics(&tree(1e10, SAMPLED), 1000, 5);
+    let exact = dense_statistics(&tree(1e11, DenseCounts::Exact), 1000, 5);
+    let sampled = dense_statistics(&tree(1e11, SAMPLED), 1000, 5);
     assert!(
         exact.mean > 10.0,
         "the workload is dense: mean {}",
         exact.mean
     );
     assert!(
-        (sampled.mean / exact.mean - 1.0).abs() < 0.02,
+        (sampled.mean / exact.mean - 1.0).abs() < 0.012,
         "mean {sampled:?} against {exact:?}"
     );
     assert!(
-        (sampled.dispersion / exact.dispersion - 1.0).abs() < 0.2,
+        (sampled.dispersion / exact.dispersion - 1.0).abs() < 0.25,
         "dispersion {sampled:?} against {exact:?}"
     );
     for (name, got, want) in [
@@ -47,7 +49,7 @@ fn sampled_counts_keep_the_exact_statistics() {
         ("neighbour", sampled.neighbour, exact.neighbour),
         ("conic moved", sampled.conic_moved, exact.conic_moved),
     ] {
-        assert!((got - want).abs() < 0.12, "{name}: {got} against {want}");
+        assert!((got - want).abs() < 0.18, "{name}: {got} against {want}");
     }
 }
 
@@ -79,11 +81,13 @@ fn sampled_query_cost_is_bounded_whatever_n() {
             "N = {particles:e}: {nodes} nodes against {at_1e10}"
         );
     }
-    assert!(at_1e10 < 150.0, "{at_1e10} nodes at N = 10¹⁰");
+    assert!(at_1e10 < 160.0, "{at_1e10} nodes at N = 10¹⁰");
 }
 
-/// Sparse materials sample nothing: at N = 10⁶ and 10⁸ every count equals the exact count,
-/// bit for bit.
+/// Sparse materials sample nothing: at N = 10⁶, 10⁸ and 10⁹ every count of the default mode
+/// equals the `DenseCounts::Exact` count bit for bit, with ε = 0 and with ε = 0.1, but where
+/// Eq. 10 stopped a short query early before (it now waits for long queries): there the old
+/// count was an expectation (fractional) and the new one counts whole particles.
 #[test]
 fn sparse_counts_are_the_exact_counts() {
     let mut rng = SplitMix64::new(7);
@@ -91,15 +95,36 @@ fn sparse_counts_are_the_exact_counts() {
         .map(|_| highlight_query(0.1, 1f64.to_radians(), SIDE, &mut rng))
         .collect();
     let mut scratch = QueryScratch::new();
-    for particles in [1e6, 1e8] {
-        let (exact, sampled) = (
-            tree(particles, DenseCounts::Exact),
-            tree(particles, SAMPLED),
-        );
-        for (footprint, conic) in &workload {
-            let a = exact.query(footprint, conic, &mut scratch).count;
-            let b = sampled.query(footprint, conic, &mut scratch).count;
-            assert_eq!(a.to_bits(), b.to_bits(), "N = {particles:e}");
+    for particles in [1e6, 1e8, 1e9] {
+        for epsilon in [0.0, 0.1] {
+            let with = |dense: DenseCounts| {
+                let config = CountTreeConfig {
+                    particles: particles as u64,
+                    seed: 77,
+                    epsilon,
+                    dense,
+                    ..CountTreeConfig::default()
+                };
+                CountTree::new(config, beckmann_density(0.1, 0.1)).expect("valid configuration")
+            };
+            let (exact, sampled) = (with(DenseCounts::Exact), with(SAMPLED));
+            let mut estimated = 0;
+            for (footprint, conic) in &workload {
+                let a = exact.query(footprint, conic, &mut scratch).count;
+                let b = sampled.query(footprint, conic, &mut scratch).count;
+                if a.to_bits() != b.to_bits() {
+                    assert!(
+                        a.fract() != 0.0 && b.fract() == 0.0,
+                        "N = {particles:e}: {a} → {b}"
+                    );
+                    estimated += 1;
+                }
+            }
+            assert!(
+                epsilon > 0.0 && particles >= 1e9 || estimated == 0,
+                "N = {particles:e}, ε = {epsilon}: {estimated} counts differ"
+            );
+            assert!(estimated < workload.len() / 10, "{estimated} counts differ");
         }
     }
 }
@@ -153,50 +178,57 @@ fn sampled_counts_are_deterministic_and_continuous() {
     );
 }
 
-/// Under a density map the sampled counts keep the map's mean: a map that is zero on its left
-/// half and one on its right gives footprints on the right half the uniform material's mean,
-/// and those on the left none.
+/// Under a density map that varies at the footprints' scale (1024² texels of 0.1 to 1, each
+/// about a footprint wide), the sampled counts keep the exact counts' mean: the samples place
+/// their points by the map within each box, and the mean term weighs the box's share by it.
 #[test]
 fn sampled_counts_follow_a_density_map() {
-    let map = DensityMap::new(2, 1, &[0.0, 1.0]).expect("a valid map");
-    let config = CountTreeConfig {
-        particles: 1e12 as u64,
-        seed: 3,
-        epsilon: 0.0,
-        dense: SAMPLED,
-        ..CountTreeConfig::default()
+    let size = 1024;
+    let values: Vec<f64> = (0..size * size)
+        .map(|i| {
+            let (x, y) = ((i % size) as f64, (i / size) as f64);
+            0.55 + 0.45 * (0.37 * x).sin() * (0.23 * y + 1.0).cos()
+        })
+        .collect();
+    let map = std::sync::Arc::new(DensityMap::new(size, size, &values).expect("a valid map"));
+    let mapped = |dense: DenseCounts| {
+        let config = CountTreeConfig {
+            particles: 1e11 as u64,
+            seed: 3,
+            epsilon: 0.0,
+            dense,
+            ..CountTreeConfig::default()
+        };
+        CountTree::with_density_map(config, beckmann_density(0.1, 0.1), Some(map.clone()))
+            .expect("valid configuration")
     };
-    let mapped = CountTree::with_density_map(
-        config,
-        beckmann_density(0.1, 0.1),
-        Some(std::sync::Arc::new(map)),
-    )
-    .expect("valid configuration");
-    let uniform = CountTree::new(config, beckmann_density(0.1, 0.1)).expect("valid configuration");
+    let (exact, sampled) = (mapped(DenseCounts::Exact), mapped(SAMPLED));
     let (conic, _) = conic_and_moved();
     let mut rng = SplitMix64::new(2);
     let mut scratch = QueryScratch::new();
-    let (mut left, mut right, mut reference) = (0.0, 0.0, 0.0);
-    let positions = 300;
+    let (mut exact_sum, mut sampled_sum, mut differing) = (0.0, 0.0, 0);
+    let positions = 400;
     for _ in 0..positions {
-        let v = rng.uniform();
-        let [a, b] = [0.05 + 0.4 * rng.uniform(), 0.55 + 0.4 * rng.uniform()];
-        let square = |u: f64| {
-            Footprint::new(
-                DVec2::new(u, v),
-                DVec2::new(SIDE, 0.0),
-                DVec2::new(0.0, SIDE),
-            )
-            .expect("finite")
-        };
-        left += mapped.query(&square(a), &conic, &mut scratch).count;
-        right += mapped.query(&square(b), &conic, &mut scratch).count;
-        reference += uniform.query(&square(b), &conic, &mut scratch).count;
+        let uv = DVec2::new(rng.uniform(), rng.uniform());
+        // Footprints twice the side of the statistics' (about 400 particles each at
+        // N = 10¹¹), so that nodes at their scale are dense enough to be sampled.
+        let footprint =
+            Footprint::new(uv, DVec2::new(2.0 * SIDE, 0.0), DVec2::new(0.0, 2.0 * SIDE))
+                .expect("finite");
+        let a = exact.query(&footprint, &conic, &mut scratch).count;
+        let b = sampled.query(&footprint, &conic, &mut scratch).count;
+        exact_sum += a;
+        sampled_sum += b;
+        differing += usize::from(a != b);
     }
-    assert_eq!(left, 0.0);
-    // Both means ≈ 1800 per footprint: standard error about 0.1% each.
     assert!(
-        (right / reference - 1.0).abs() < 0.01,
-        "{right} against {reference}"
+        differing > positions / 4,
+        "only {differing} counts were sampled"
+    );
+    // Means of about 400 per footprint over 400 positions: the difference of the two means
+    // (their sampled parts independent given the tree) has a standard error below 0.4%.
+    assert!(
+        (sampled_sum / exact_sum - 1.0).abs() < 0.016,
+        "{sampled_sum} against {exact_sum}"
     );
 }

@@ -70,7 +70,7 @@ use crate::surface_maps::{RoughnessLevel, RoughnessMap, TintMap, WeightedTint, r
 /// | `particles` | N, flakes per unit texture square | 10⁶ |
 /// | `gamma_radians` | the cone radius γ in radians, in [10⁻⁶, 60°] (C, Python, `eval` and scene files take `gamma_degrees`) | 1° |
 /// | `epsilon` | ε of Eq. 10: a partial node whose binomial spread is below ε × the count adds its expected share (0 = off) | 0.1 |
-/// | `dense` | how dense partial nodes at the query's scale are answered: rescaled samples ([`DenseCounts::Sampled`], the exact counts' mean and correlations at a bounded cost) or every particle ([`DenseCounts::Exact`]) | sampled, node scale 2 |
+/// | `dense` | how dense partial nodes at the query's scale are answered: rescaled samples ([`DenseCounts::Sampled`], the exact counts' mean and correlations at a bounded cost) or every particle ([`DenseCounts::Exact`]) | sampled, node scale 1 |
 /// | `seed` | the particle set | 0 |
 /// | `fresnel` | F | none (F = 1) |
 /// | `multinomial` | exact splits or the paper's normal approximation | exact |
@@ -134,7 +134,7 @@ pub struct GlintParameters {
 
 impl GlintParameters {
     /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, dense nodes
-    /// answered from their samples (node scale 2) before Eq. 10 is asked, seed 0, F = 1,
+    /// answered from their samples (node scale 1; Eq. 10 then only for long queries), seed 0, F = 1,
     /// exact multinomials, no colour, α_s = 2α, cubature rules for the sampling pdf
     /// (64 QMC points when switched to QMC), footprints of 10⁻⁶, every
     /// query traversed (no negligible-query test), no maps (8 roughness levels for one).

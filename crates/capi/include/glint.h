@@ -137,7 +137,7 @@ typedef struct GlintScratch GlintScratch;
  * | `alpha_x`, `alpha_y` | 0.1 | [1e-4, 1] |
  * | `particles` | 1e6 | a whole number in [1, 2^53] |
  * | `gamma_degrees` | 1 | [5.73e-5, 60] (1e-6 rad to 60 degrees) |
- * | `epsilon` | 0 | [0, 1]: Eq. 10's early stop (0 = off) |
+ * | `epsilon` | 0.1 | [0, 1]: Eq. 10's early stop (0 = off) |
  * | `seed` | 0 | any |
  * | `fresnel` | `GLINT_FRESNEL_NONE` | a `GlintFresnel` |
  * | `conductor_eta`, `conductor_k` | {1, 1, 1}, {0, 0, 0} | eta in [1e-3, 1e3], k in [0, 1e3] |
@@ -152,7 +152,7 @@ typedef struct GlintScratch GlintScratch;
  * | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
  * | `roughness_levels` | 8 | 1 to 64 |
  * | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
- * | `dense_node_scale` | 2 | (0, 16]: the largest node sampled, in widths of the query |
+ * | `dense_node_scale` | 1 | (0, 16]: the largest node sampled, in widths of the query |
  *
  * A map has width × height ≤ 2^24 texels, row 0 at the top of the texture; it is copied, so
  * the caller's array may be freed once `glint_material_new` returns. A bad texel is an error

@@ -602,7 +602,7 @@ impl Default for GlintMaterialParams {
             tint_map_height: 0,
             roughness_levels: 8,
             dense: GlintDense::GLINT_DENSE_SAMPLED as u32,
-            dense_node_scale: 2.0,
+            dense_node_scale: 1.0,
         }
     }
 }

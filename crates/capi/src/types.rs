@@ -114,7 +114,7 @@ pub enum GlintPdfQuadrature {
 /// | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
 /// | `roughness_levels` | 8 | 1 to 64 |
 /// | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
-/// | `dense_node_scale` | 2 | (0, 16]: the largest node sampled, in widths of the query |
+/// | `dense_node_scale` | 1 | (0, 16]: the largest node sampled, in widths of the query |
 ///
 /// A map has width × height ≤ 2^24 texels, row 0 at the top of the texture; it is copied, so
 /// the caller's array may be freed once `glint_material_new` returns. A bad texel is an error

@@ -444,7 +444,7 @@ fn defaults_are_glint_parameters_new_with_evals_negligible_count() {
     assert_eq!((p.gamma_degrees, p.epsilon, p.seed), (1.0, 0.1, 0));
     assert_eq!(
         (p.dense, p.dense_node_scale),
-        (GlintDense::GLINT_DENSE_SAMPLED as u32, 2.0)
+        (GlintDense::GLINT_DENSE_SAMPLED as u32, 1.0)
     );
     assert_eq!(p.fresnel, GlintFresnel::GLINT_FRESNEL_NONE as u32);
     assert_eq!(

@@ -14,8 +14,9 @@
 //! ```
 //!
 //! The node's *virtual sample* is M = [`VIRTUAL_PARTICLES`] points of the same law, placed
-//! exactly as a leaf places its particles (the node's own leaf streams, unused by a node of
-//! more than [`super::LEAF_PARTICLES`] particles), and so the same for every query. With k(R)
+//! exactly as a leaf places its particles (the node's own leaf streams, which a node of more
+//! than [`super::LEAF_PARTICLES`] particles uses for nothing else above the depth guard), and
+//! so the same for every query. With k(R)
 //! the sample's points in R and w = n/M, the node contributes
 //!
 //! ```text
@@ -23,28 +24,47 @@
 //! ```
 //!
 //! whose mean is n·ν(R) and whose covariance is w·M·(ν(R ∩ R′) − ν(R)ν(R′)), the exact one,
-//! for every pair of regions at once: the same footprint moved by part of its width, a
-//! neighbouring footprint (disjoint parts of one node are negatively correlated, as exact
-//! counts are), the conic moved with the light or the view. A footprint moving inside a node
-//! larger than itself still changes its count: the sample's points are spread over the box.
-//! Y is continuous in the query as exact counts are (it steps by √w where a sample point
-//! crosses the query's edge, where an exact count steps by 1 per particle), lies in [0, n],
-//! and is deterministic (the sample depends on the node alone).
+//! for every pair of regions that both answer the node from its sample: the same footprint
+//! moved by part of its width, a neighbouring footprint (disjoint parts of one node are
+//! negatively correlated, as exact counts are), the conic moved with the light or the view. A
+//! footprint moving inside a node larger than itself still changes its count: the sample's
+//! points are spread over the box. Y steps by √w where a sample point crosses the query's edge
+//! (an exact count steps by 1 per particle) and moves continuously with ν(R) between steps; it
+//! lies in [0, n·m] for multiplicities up to m, and is deterministic (the sample depends on the
+//! node alone).
 //!
-//! What it does not keep: the law's higher moments. The count's skewness and its lattice are
-//! the sample's, coarser by √w; across the many nodes a dense query adds, they average out.
-//! The mean needs ν(R) itself: the footprint's share of the box (or its map-weighted share),
-//! times the cell's share of p in the conic with p linear across Alg. 2's leaf cells
-//! ([`super::LeafShare::LinearDensity`]: by solid angle, shares were 4% low on a lobe's flank).
+//! # What it does not keep
+//! - **Higher moments.** The count's skewness and lattice are the sample's, coarser by √w.
+//!   They grow with the nodes sampled: at node scale 1 (the default) the counts' skewness is
+//!   0.2–0.3 where exact counts have 0.02–0.2; at 2 it is 1.3 and at 4 it is 5.3 (few sample
+//!   points fall in the query, each worth √w particles: lumpy counts). Measured in `cargo xtask
+//!   validate`'s trade suite.
+//! - **Correlations across levels.** Whether a node is sampled depends on the query's size (its
+//!   footprint's width, γ), so two queries of different sizes may answer one node at different
+//!   levels (one from its sample, the other from its children), and their counts are then
+//!   uncorrelated there where exact counts are not: a footprint nested in one twice as wide,
+//!   or a footprint whose width crosses a threshold while the camera moves (the sampled part
+//!   of the count is redrawn once per factor two of width).
+//! - **Exact means.** ν(R) comes from the directional share with p linear across Alg. 2's leaf
+//!   cells ([`super::LeafShare::LinearDensity`]; by solid angle, shares were 4% low on a lobe's
+//!   flank), whose error Δν biases the count by about n·Δν: +0.3% of the mean count on the
+//!   trade suite's workload.
+//! - **Particle areas.** Coloured materials (per-channel particle areas) are not sampled: a
+//!   sample draws no area shares, and the areas' Dirichlet variance would be lost.
+//!
+//! Eq. 10 (ε > 0) waits, under the dense regime, until a query is long (the scale floor of
+//! `super::query`): ordinary queries are resolved or sampled, so they keep the exact counts'
+//! statistics, and long ones still stop early.
 //!
 //! # Which nodes
 //! A partial node is answered this way when it holds at least [`DENSE_MIN_PARTICLES`] and its
 //! cell is at most `node_scale`·γ across (√Ω; γ/2 is the conic's minor half-axis) and its box
 //! at most 4·`node_scale` footprint widths, each unless the query holds the node in that
-//! dimension. Larger nodes split as before: the sample's M points over a node much larger than
-//! the query would leave only a point or two in it, the variance right but its shape coarse.
-//! So the cost is bounded by the query's shape, not by N: the nodes answered are those of the
-//! query's boundary at its own scale.
+//! dimension; never the hemisphere's nodes (the spine's levels, which a query may skip), nodes
+//! at the depth guard (real leaves there may hold more than 32 particles, the first 32 of them
+//! the sample's) or coloured materials' nodes. Larger nodes split as before. So the cost is
+//! bounded by the query's shape, not by N: the nodes answered are those of the query's
+//! boundary at its own scale.
 
 use glint_sphere::{Classification, SphericalConic};
 
@@ -81,11 +101,13 @@ pub enum DenseCounts {
 }
 
 impl DenseCounts {
-    /// The default: samples of nodes up to twice the query's width.
-    pub const DEFAULT: Self = Self::Sampled { node_scale: 2.0 };
+    /// The default: samples of nodes up to the query's width.
+    pub const DEFAULT: Self = Self::Sampled { node_scale: 1.0 };
 
-    /// The default `node_scale` of [`DenseCounts::Sampled`].
-    pub const DEFAULT_NODE_SCALE: f64 = 2.0;
+    /// The default `node_scale` of [`DenseCounts::Sampled`]: larger scales cost less but make
+    /// the counts lumpy (skewness 1.3 at 2, 5.3 at 4, against 0.2–0.3 at 1; `cargo xtask
+    /// validate`, trade suite).
+    pub const DEFAULT_NODE_SCALE: f64 = 1.0;
 
     /// The names every interface spells the modes with: "sampled" and "exact".
     pub const NAMES: [&'static str; 2] = ["sampled", "exact"];
@@ -196,7 +218,14 @@ impl CountTree {
         } = *partial;
         let directions_inside = directional == Classification::TriangleInsideConic;
         let size = node.box_size();
-        if node.count < DENSE_MIN_PARTICLES
+        // Not sampled: coloured materials (a sample draws no area shares, whose Dirichlet
+        // variance D̂ would lose), the hemisphere's nodes (the spine's levels, which a query
+        // may skip), and nodes at the depth guard (real leaves there may hold more than 32
+        // particles, the first 32 of them the sample's).
+        if self.config.colour_channels > 0
+            || node.cell.triangle.is_none()
+            || node.depth >= self.config.max_depth
+            || node.count < DENSE_MIN_PARTICLES
             || (spatial.partial > 0 && size > scales.max_box_side)
             || (!directions_inside
                 && (directional == Classification::ConicInsideTriangle

@@ -5,6 +5,7 @@
 //! split probabilities down to the final cells) exceeds a bound on p, which Alg. 2's δ_abs
 //! allows in the far tails. These read the material's tables; they draw no random numbers.
 
+use glam::DVec3;
 use glint_sphere::{
     Classification, OverlapMethod, SphericalConic, SphericalTriangle,
     overlap_share_with_linear_density, overlap_solid_angle,
@@ -163,7 +164,9 @@ impl CountTree {
                 Classification::TriangleInsideConic => {
                     total += self.quadrature.integral(&cell, density)
                 }
-                _ if self.quadrature.has_entry(&cell) => stack.extend(cell.children()),
+                _ if self.quadrature.has_entry(&cell) && !self.linear_enough(&triangle, leaf) => {
+                    stack.extend(cell.children())
+                }
                 _ => {
                     let fraction = self.leaf_share(&triangle, cell.solid_angle(), conic, leaf);
                     total += self.quadrature.integral(&cell, density) * fraction;
@@ -171,6 +174,21 @@ impl CountTree {
             }
         }
         total
+    }
+
+    /// Whether `leaf`'s rule may take a cell with a table entry as it is: for the linear rule,
+    /// where p's midpoint and corner rules agree within [`LINEAR_ENOUGH`] (the linear
+    /// interpolant then misses at most about that share of the cell's mass); the constant rule
+    /// always descends to the table's leaves.
+    fn linear_enough(&self, triangle: &SphericalTriangle, leaf: LeafShare) -> bool {
+        if leaf != LeafShare::LinearDensity {
+            return false;
+        }
+        let density = self.density.as_ref();
+        let at = |m: DVec3| if m.z > 0.0 { density(m) } else { 0.0 };
+        let corners: f64 = triangle.vertices().iter().map(|&m| at(m)).sum::<f64>() / 3.0;
+        let middle = at(triangle.centroid());
+        (middle - corners).abs() <= LINEAR_ENOUGH * corners.max(middle)
     }
 
     /// The share of a cell's particles whose normals lie in `conic`, by `leaf`'s rule.
@@ -195,6 +213,11 @@ impl CountTree {
         }
     }
 }
+
+/// The relative disagreement of p's midpoint and corner rules below which the linear rule takes
+/// a cell with a table entry as linear (Alg. 2 refines to 10⁻⁵; the dense regime's shares need
+/// about 10⁻³ of the mean count).
+const LINEAR_ENOUGH: f64 = 1e-2;
 
 /// How a cell of Alg. 2's table leaves that the conic cuts gives its share of ∫p.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
