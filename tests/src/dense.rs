@@ -1,7 +1,8 @@
 //! What a viewer sees of dense counts, measured the same way for every setting of the dense
 //! regime (`glint_tree::DenseCounts`) and for exact counts: one highlight conic (Beckmann
 //! α = 0.1, γ = 1°) over square footprints of side 10⁻³ at random positions. The mean and the
-//! dispersion (variance/mean: 1 − A·q ≈ 1 for exact counts), and the correlation of a
+//! dispersion (variance/mean: 1 − A·q ≈ 1 for exact counts), the skewness (about 1/√mean for
+//! exact counts: how lumpy the counts are beyond their variance), and the correlation of a
 //! footprint's count with the same footprint moved by half its width (exact counts: their
 //! overlap, ½), with its right-hand neighbour (disjoint: about 0) and with the same footprint
 //! under the conic of ω_o turned by γ (the light or the view moving; exact counts: about 0.41).
@@ -23,6 +24,8 @@ pub struct DenseStatistics {
     pub mean: f64,
     /// Variance over mean.
     pub dispersion: f64,
+    /// The third standardized moment (exact counts: about 1/√mean).
+    pub skewness: f64,
     /// Correlation with the footprint moved by half its width.
     pub shifted: f64,
     /// Correlation with the neighbouring footprint (moved by its width).
@@ -63,9 +66,11 @@ pub fn dense_statistics(tree: &CountTree, positions: usize, seed: u64) -> DenseS
         conic_moved.push(count(uv, &moved));
     }
     let (mean, variance) = mean_and_variance(&base);
+    let third = base.iter().map(|c| (c - mean).powi(3)).sum::<f64>() / base.len() as f64;
     DenseStatistics {
         mean,
         dispersion: variance / mean,
+        skewness: third / variance.powf(1.5),
         shifted: correlation(&base, &shifted),
         neighbour: correlation(&base, &neighbour),
         conic_moved: correlation(&base, &conic_moved),
