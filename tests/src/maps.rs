@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use glam::DVec2;
 use glint_sphere::SphericalConic;
-use glint_tree::{CountTree, CountTreeConfig, DensityMap, Footprint, QueryScratch};
+use glint_tree::{CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, QueryScratch};
 
 use crate::SplitMix64;
 use crate::counts::{beckmann_density, conic_integral_by_sampling};
@@ -189,6 +189,7 @@ pub fn mapped_count_sums(
             particles,
             seed,
             epsilon,
+            dense: DenseCounts::Exact,
             ..CountTreeConfig::default()
         };
         let tree = CountTree::with_density_map(config, density.clone(), Some(map.clone()))

@@ -11,7 +11,9 @@ use glint_tests::counts::{
     mean_and_variance, multinomial_chi_square, overlapping_pair_counts,
 };
 use glint_tests::geometry::direction;
-use glint_tree::{CountTree, CountTreeConfig, Footprint, MultinomialMode, QueryScratch};
+use glint_tree::{
+    CountTree, CountTreeConfig, DenseCounts, Footprint, MultinomialMode, QueryScratch,
+};
 
 use crate::validate::{Check, parallel_chunks};
 
@@ -62,6 +64,7 @@ pub(crate) fn binomial_moments(quick: bool, report: &mut String) -> anyhow::Resu
             seed: 100 + index as u64,
             epsilon: 0.0,
             expected_query_area: side * side,
+            dense: DenseCounts::Exact,
             ..CountTreeConfig::default()
         };
         let tree = CountTree::new(config, density.clone())?;
@@ -199,6 +202,7 @@ pub(crate) fn additivity_and_determinism(
         particles: 50_000_000,
         seed: 9,
         epsilon: 0.0,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     let tree = CountTree::new(config, beckmann_density(0.15, 0.15))?;
@@ -257,6 +261,7 @@ pub(crate) fn coherence(quick: bool, report: &mut String) -> anyhow::Result<Chec
         particles: 4_000_000,
         seed: 3,
         epsilon: 0.0,
+        dense: DenseCounts::Exact,
         ..CountTreeConfig::default()
     };
     let tree = CountTree::new(config, beckmann_density(0.3, 0.3))?;
