@@ -8,10 +8,14 @@ use glint_tests::dense::{SIDE, conic_and_moved, dense_statistics};
 use glint_tree::{CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, QueryScratch};
 
 fn tree(particles: f64, dense: DenseCounts) -> CountTree {
+    tree_with_epsilon(particles, 0.0, dense)
+}
+
+fn tree_with_epsilon(particles: f64, epsilon: f64, dense: DenseCounts) -> CountTree {
     let config = CountTreeConfig {
         particles: particles as u64,
         seed: 77,
-        epsilon: 0.0,
+        epsilon,
         dense,
         ..CountTreeConfig::default()
     };
@@ -97,16 +101,7 @@ fn sparse_counts_are_the_exact_counts() {
     let mut scratch = QueryScratch::new();
     for particles in [1e6, 1e8, 1e9] {
         for epsilon in [0.0, 0.1] {
-            let with = |dense: DenseCounts| {
-                let config = CountTreeConfig {
-                    particles: particles as u64,
-                    seed: 77,
-                    epsilon,
-                    dense,
-                    ..CountTreeConfig::default()
-                };
-                CountTree::new(config, beckmann_density(0.1, 0.1)).expect("valid configuration")
-            };
+            let with = |dense| tree_with_epsilon(particles, epsilon, dense);
             let (exact, sampled) = (with(DenseCounts::Exact), with(SAMPLED));
             let mut estimated = 0;
             for (footprint, conic) in &workload {

@@ -251,33 +251,9 @@ impl MaterialSpec {
             }
             None => return Err("material.distribution is missing: use beckmann or ggx".to_owned()),
         };
-        let multinomial = match m.get("multinomial") {
-            None => None,
-            Some(Value::String(s)) => Some(s.clone()),
-            Some(other) => {
-                return Err(format!(
-                    "material.multinomial {other} is unknown: use \"exact\" or \"normal\""
-                ));
-            }
-        };
-        let dense = match m.get("dense") {
-            None => None,
-            Some(Value::String(s)) => Some(s.clone()),
-            Some(other) => {
-                return Err(format!(
-                    "material.dense {other} is unknown: use \"sampled\" or \"exact\""
-                ));
-            }
-        };
-        let pdf_quadrature = match m.get("pdf_quadrature") {
-            None => None,
-            Some(Value::String(s)) => Some(s.clone()),
-            Some(other) => {
-                return Err(format!(
-                    "material.pdf_quadrature {other} is unknown: use \"cubature\" or \"qmc\""
-                ));
-            }
-        };
+        let multinomial = optional_name(m, "multinomial", "\"exact\" or \"normal\"")?;
+        let dense = optional_name(m, "dense", "\"sampled\" or \"exact\"")?;
+        let pdf_quadrature = optional_name(m, "pdf_quadrature", "\"cubature\" or \"qmc\"")?;
         Ok(Self {
             distribution,
             alpha: number(m, "alpha", "material.alpha")?,
@@ -370,6 +346,19 @@ fn seed_from_json(value: Option<&Value>) -> Result<Option<u64>, String> {
         _ => Err(format!(
             "material.seed must be a finite number, not {value}"
         )),
+    }
+}
+
+/// An optional string field, `use_` naming its values for the error a non-string gets.
+fn optional_name(
+    m: &Map<String, Value>,
+    field: &str,
+    use_: &str,
+) -> Result<Option<String>, String> {
+    match m.get(field) {
+        None => Ok(None),
+        Some(Value::String(s)) => Ok(Some(s.clone())),
+        Some(other) => Err(format!("material.{field} {other} is unknown: use {use_}")),
     }
 }
 

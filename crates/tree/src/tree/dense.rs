@@ -132,15 +132,6 @@ impl DenseCounts {
         }
     }
 
-    /// The mode's name (see [`DenseCounts::NAMES`]).
-    #[must_use]
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::Sampled { .. } => "sampled",
-            Self::Exact => "exact",
-        }
-    }
-
     /// Whether the setting is valid (node_scale in (0, 16]).
     #[must_use]
     pub fn is_valid(&self) -> bool {
