@@ -262,13 +262,7 @@ impl NdfQuadrature {
         let integrals: [f64; 4] = std::array::from_fn(|j| {
             self.integral_with_solid_angle(&children[j], solid_angles[j], density)
         });
-        let total: f64 = integrals.iter().sum();
-        if total > 0.0 && total.is_finite() {
-            integrals.map(|i| i / total)
-        } else {
-            let sum: f64 = solid_angles.iter().sum();
-            solid_angles.map(|o| o / sum)
-        }
+        normalized_split(integrals, solid_angles)
     }
 
     /// The number of table entries (the paper reports 500–1000 for its scenes).
@@ -416,10 +410,29 @@ impl DirectionalSplits {
     }
 }
 
+/// A split's probabilities from its children's integrals: renormalized to sum to 1, or by
+/// solid angle where p vanishes on all four ([`NdfQuadrature::split_probabilities`]).
+#[inline]
+pub(crate) fn normalized_split(integrals: [f64; 4], solid_angles: &[f64; 4]) -> [f64; 4] {
+    let total: f64 = integrals.iter().sum();
+    if total > 0.0 && total.is_finite() {
+        integrals.map(|i| i / total)
+    } else {
+        let sum: f64 = solid_angles.iter().sum();
+        solid_angles.map(|o| o / sum)
+    }
+}
+
 /// Ω·p(centre), the one-point rule (p = 0 below the horizon).
 #[inline]
 fn one_point_rule(triangle: &SphericalTriangle, solid_angle: f64, density: &NormalDensity) -> f64 {
-    let centre = triangle.centroid();
+    one_point_rule_at(triangle.centroid(), solid_angle, density)
+}
+
+/// [`one_point_rule`] for a triangle whose centroid ([`SphericalTriangle::centroid`]) the
+/// caller already has.
+#[inline]
+pub(crate) fn one_point_rule_at(centre: DVec3, solid_angle: f64, density: &NormalDensity) -> f64 {
     if centre.z > 0.0 {
         solid_angle * density(centre)
     } else {

@@ -44,6 +44,7 @@ mod split;
 
 pub(super) use descent::DescentStep;
 pub use descent::LEAF_CELL_ARC;
+pub(super) use descent::LEAF_CELL_CHORD;
 pub use leaf::LEAF_PARTICLES;
 pub(super) use leaf::{LeafDraws, LeafParticle};
 pub(super) use split::{PairCounts, quarter_min};

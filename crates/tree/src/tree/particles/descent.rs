@@ -27,7 +27,7 @@ use crate::tree::scratch::QueryMemo;
 pub const LEAF_CELL_ARC: f64 = 0.01;
 
 /// The chord of [`LEAF_CELL_ARC`], 2·sin(0.005).
-const LEAF_CELL_CHORD: f64 = 0.009_999_958_333_385_416;
+pub(in crate::tree) const LEAF_CELL_CHORD: f64 = 0.009_999_958_333_385_416;
 
 impl CountTree {
     /// The triangle of `cell` if it is a *final cell* of the directional law: its longest edge
