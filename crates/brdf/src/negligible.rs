@@ -74,8 +74,14 @@ fn law_excess(tree: &CountTree, distribution: Microfacet) -> DirectionalLawExces
         return excess;
     }
     // Computed without the lock: two threads may both compute a new law, to the same values.
-    let excess =
-        tree.directional_law_excess(&|near, far| distribution.particle_density_bound(near, far));
+    let bound = |near, far| distribution.particle_density_bound(near, far);
+    // An isotropic p is unchanged, bit for bit, by a quarter turn about n: D's slope term
+    // m_x²/α_x² + m_y²/α_y² only exchanges its two terms, and the rest reads m_z.
+    let excess = if alpha_x == alpha_y {
+        tree.directional_law_excess_quarter_symmetric(&bound)
+    } else {
+        tree.directional_law_excess(&bound)
+    };
     let mut memo = lock();
     if remembered(&memo).is_none() {
         if memo.len() == REMEMBERED_LAWS {

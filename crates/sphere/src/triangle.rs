@@ -87,6 +87,34 @@ impl SphericalTriangle {
         2.0 * triple.atan2(denominator)
     }
 
+    /// The solid angles of four triangles, each bit for bit [`SphericalTriangle::solid_angle`]'s
+    /// (the same operations in the same order), computed side by side: the four chains of
+    /// dependent operations (the series' Horner steps, the quotient) overlap, where four calls
+    /// one after the other mostly wait on each other's latency.
+    #[must_use]
+    pub fn solid_angles_of(triangles: &[Self; 4]) -> [f64; 4] {
+        let mut triples = [0.0; 4];
+        let mut denominators = [0.0; 4];
+        for (j, triangle) in triangles.iter().enumerate() {
+            let [a, b, c] = triangle.vertices;
+            triples[j] = a.dot((b - a).cross(c - a));
+            denominators[j] = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
+        }
+        let mut quotients = [0.0; 4];
+        for j in 0..4 {
+            quotients[j] = triples[j] / denominators[j];
+        }
+        let series = atan_series_of(quotients);
+        std::array::from_fn(|j| {
+            let (triple, denominator) = (triples[j], denominators[j]);
+            if triple >= 0.0 && triple < 0.1 * denominator {
+                2.0 * series[j]
+            } else {
+                2.0 * triple.atan2(denominator)
+            }
+        })
+    }
+
     /// The inward normals of the three great circles through the edges ab, bc, ca (not
     /// normalized). A direction p is inside when p has a non-negative dot product with all three.
     #[must_use]
@@ -168,18 +196,35 @@ impl SphericalTriangle {
 fn atan_series(t: f64) -> f64 {
     let x = t * t;
     let mut sum = -1.0 / 15.0;
-    for coefficient in [
-        1.0 / 13.0,
-        -1.0 / 11.0,
-        1.0 / 9.0,
-        -1.0 / 7.0,
-        1.0 / 5.0,
-        -1.0 / 3.0,
-        1.0,
-    ] {
+    for coefficient in ATAN_COEFFICIENTS {
         sum = sum * x + coefficient;
     }
     t * sum
+}
+
+/// The coefficients of [`atan_series`]'s Horner steps after the first, −1/15.
+const ATAN_COEFFICIENTS: [f64; 7] = [
+    1.0 / 13.0,
+    -1.0 / 11.0,
+    1.0 / 9.0,
+    -1.0 / 7.0,
+    1.0 / 5.0,
+    -1.0 / 3.0,
+    1.0,
+];
+
+/// [`atan_series`] of four arguments, step by step side by side (each lane bit for bit
+/// [`atan_series`]'s; meaningful only where 0 ≤ t < 0.1).
+#[inline]
+fn atan_series_of(t: [f64; 4]) -> [f64; 4] {
+    let x = t.map(|t| t * t);
+    let mut sum = [-1.0 / 15.0; 4];
+    for coefficient in ATAN_COEFFICIENTS {
+        for j in 0..4 {
+            sum[j] = sum[j] * x[j] + coefficient;
+        }
+    }
+    std::array::from_fn(|j| t[j] * sum[j])
 }
 
 #[cfg(test)]
@@ -226,6 +271,36 @@ mod tests {
             assert!(t.contains(v));
         }
         assert!(!t.contains(DVec3::new(-1.0, 0.1, 0.1)));
+    }
+
+    /// `solid_angles_of` is `solid_angle` four times, bit for bit: triangles from octants to
+    /// 10⁻⁶ rad across (the series and `atan2` branches), subdivided as the count tree does.
+    #[test]
+    fn four_solid_angles_side_by_side_are_each_solid_angle() {
+        let mut level: Vec<SphericalTriangle> =
+            SphericalTriangle::upper_hemisphere_octants().to_vec();
+        level.push(
+            SphericalTriangle::new(DVec3::X, DVec3::Y, DVec3::new(-1.0, -1.0, -0.1)).unwrap(),
+        );
+        let mut compared = 0;
+        for _ in 0..20 {
+            for quad in level.chunks_exact(4) {
+                let quad: &[SphericalTriangle; 4] = quad.try_into().unwrap();
+                let side_by_side = SphericalTriangle::solid_angles_of(quad);
+                for (triangle, omega) in quad.iter().zip(side_by_side) {
+                    assert_eq!(
+                        omega.to_bits(),
+                        triangle.solid_angle().to_bits(),
+                        "{triangle:?}"
+                    );
+                    compared += 1;
+                }
+            }
+            // Keep every level small: the first, a middle and the last triangle's children.
+            let picks = [0, level.len() / 2, level.len() - 1];
+            level = picks.iter().flat_map(|&k| level[k].subdivide()).collect();
+        }
+        assert!(compared > 200, "{compared}");
     }
 
     #[test]
