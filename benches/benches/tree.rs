@@ -2,10 +2,12 @@
 //! directions near the highlight), plus TEA, the multinomial split and the spatial split.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use glint_benches::{TABLE1, table1_workload};
+use std::sync::Arc;
+
+use glint_benches::{TABLE1, production_density_values, table1_mapped_workload, table1_workload};
 use glint_tree::sampling::{MultinomialMode, multinomial4, multinomial4_equal_by_bits};
 use glint_tree::tea::{DEFAULT_ROUNDS, TeaRng, encrypt, encrypt_x4};
-use glint_tree::{MultinomialMode as Mode, QueryScratch};
+use glint_tree::{DensityMap, MultinomialMode as Mode, QueryScratch};
 use std::hint::black_box;
 
 const POOL: usize = 1024;
@@ -17,6 +19,26 @@ fn tree(c: &mut Criterion) {
         let mut scratch = QueryScratch::new();
         let mut i = 0;
         group.bench_function(format!("query_{}", setting.name), |b| {
+            b.iter(|| {
+                i = (i + 1) % POOL;
+                let (footprint, conic) = &queries[i];
+                tree.query(black_box(footprint), conic, &mut scratch)
+            })
+        });
+    }
+    // Under production-size density maps (`production_density_values`), the sphere lights'
+    // setting: the query cost against `query_spheres_…` above, and a map's build time.
+    let side = 1024;
+    let values = production_density_values(side);
+    group.bench_function("density_map_build_1024", |b| {
+        b.iter(|| DensityMap::new(side, side, black_box(&values)).expect("a valid map"))
+    });
+    for side in [1024, 8192] {
+        let map = DensityMap::new(side, side, &production_density_values(side)).expect("valid");
+        let (tree, queries) = table1_mapped_workload(&TABLE1[0], POOL, 1, Arc::new(map));
+        let mut scratch = QueryScratch::new();
+        let mut i = 0;
+        group.bench_function(format!("query_{}_map_{side}", TABLE1[0].name), |b| {
             b.iter(|| {
                 i = (i + 1) % POOL;
                 let (footprint, conic) = &queries[i];

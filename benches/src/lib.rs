@@ -9,7 +9,9 @@ use glint_sphere::{Classification, SphericalConic, SphericalTriangle};
 use glint_tests::SplitMix64;
 use glint_tests::counts::{beckmann_density, highlight_query};
 use glint_tests::geometry::ConicCase;
-use glint_tree::{CountTree, CountTreeConfig, Footprint, expected_conic_solid_angle};
+use std::sync::Arc;
+
+use glint_tree::{CountTree, CountTreeConfig, DensityMap, Footprint, expected_conic_solid_angle};
 
 /// `n` random cases of every kind the validation draws (extremes included).
 #[must_use]
@@ -145,6 +147,51 @@ pub fn table1_workload(
         .map(|_| highlight_query(setting.alpha, gamma, PIXEL_FOOTPRINT_SIDE, &mut rng))
         .collect();
     (tree, queries)
+}
+
+/// The values (row 0 at the top) of a `side` × `side` production-like density map: a soft
+/// radial fall-off from 1 to 0.3 over the square, cut by a band of zeros (a masked stripe, a
+/// hard edge every 1/8 of the square) and with a fine texel-level grain, so that few boxes
+/// are constant and every mass is a real sum.
+#[must_use]
+pub fn production_density_values(side: usize) -> Vec<f64> {
+    let mut values = Vec::with_capacity(side * side);
+    for row in 0..side {
+        for column in 0..side {
+            let (x, y) = (
+                (column as f64 + 0.5) / side as f64,
+                (row as f64 + 0.5) / side as f64,
+            );
+            let masked = ((8.0 * (x + y)) as usize).is_multiple_of(5);
+            let fall_off = 1.0 - 0.7 * ((x - 0.5).powi(2) + (y - 0.5).powi(2)).sqrt() / 0.71;
+            let grain = ((column * 7 + row * 13) % 16) as f64 / 160.0;
+            values.push(if masked {
+                0.0
+            } else {
+                (fall_off - grain).clamp(0.0, 1.0)
+            });
+        }
+    }
+    values
+}
+
+/// A setting's Table 1 workload ([`table1_workload`]) with the particles under `map`: the same
+/// tree configuration and queries.
+#[must_use]
+pub fn table1_mapped_workload(
+    setting: &Table1Setting,
+    n: usize,
+    seed: u64,
+    map: Arc<DensityMap>,
+) -> (CountTree, Vec<(Footprint, SphericalConic)>) {
+    let (tree, queries) = table1_workload(setting, n, seed);
+    let mapped = CountTree::with_density_map(
+        *tree.config(),
+        beckmann_density(setting.alpha, setting.alpha),
+        Some(map),
+    )
+    .expect("valid setting");
+    (mapped, queries)
 }
 
 /// Mean tree nodes visited (and meeting the query) and particles found per query over a

@@ -30,7 +30,7 @@ const SPHERE_BENCHMARKS: [(&str, &str); 7] = [
 ];
 
 /// The tree's primitive benchmarks.
-const TREE_BENCHMARKS: [(&str, &str); 14] = [
+const TREE_BENCHMARKS: [(&str, &str); 17] = [
     ("tea_scalar_8_rounds", "TEA, one 64-bit block, 8 cycles"),
     (
         "tea_x4_8_rounds",
@@ -77,6 +77,18 @@ const TREE_BENCHMARKS: [(&str, &str); 14] = [
     (
         "equal_split_binomials_n512",
         "spatial split as conditional binomials, n = 512",
+    ),
+    (
+        "density_map_build_1024",
+        "DensityMap::new, 1024² texels (one megatexel)",
+    ),
+    (
+        "query_spheres_1e6_6deg_a0.1_map_1024",
+        "sphere lights' query under a 1024² production-like density map",
+    ),
+    (
+        "query_spheres_1e6_6deg_a0.1_map_8192",
+        "sphere lights' query under an 8192² production-like density map",
     ),
 ];
 

@@ -140,7 +140,7 @@ impl fmt::Display for BrdfError {
                 values,
             } => write!(
                 f,
-                "{map}: {values} values for {width} x {height} texels (a map needs 1 to 2^24 texels)"
+                "{map}: {values} values for {width} x {height} texels (a map needs 1 to 2^28 texels)"
             ),
             Self::InvalidMapTexel {
                 map,
@@ -199,8 +199,8 @@ impl fmt::Display for BrdfError {
                 let advice = if bytes.levels > bytes.given + bytes.weighted_tint {
                     "lower roughness_levels or the maps' resolution"
                 } else {
-                    "lower the maps' resolution (a tint map costs about 186 bytes a texel with \
-                     a density map of its size, a density or roughness level map about 27)"
+                    "lower the maps' resolution (a tint map costs about 100 bytes a texel with \
+                     a density map of its size, a density or roughness level map about 12.7)"
                 };
                 write!(
                     f,

@@ -3,8 +3,8 @@
 //! A material holds the maps it is given (a density map, a roughness map, a tint map) and
 //! builds more from them: a density map per roughness level (d·w_k, [`crate::surface_maps`])
 //! and, when the density and tint maps have one size, the tint weighted by the density (three
-//! more). Each density map costs [`DensityMap::bytes_for`] its size, about 27 bytes a texel,
-//! so a 4096² roughness map at 64 levels would need 29 GB. [`DiscreteBrdf::new`] counts what
+//! more). Each density map costs [`DensityMap::bytes_for`] its size, about 12.7 bytes a
+//! texel, so a 4096² roughness map at 64 levels would need 13.6 GB. [`DiscreteBrdf::new`] counts what
 //! the material will hold from the maps' sizes alone and refuses, with
 //! [`BrdfError::MapsTooLarge`], a material over [`MAX_MAP_BYTES`]: every interface (scene
 //! files, `eval`, C, Python, Mitsuba) builds materials through it, so the bound is the same
@@ -19,8 +19,8 @@ use crate::error::BrdfError;
 use crate::surface_maps::level_alphas;
 
 /// The most memory a material's maps may hold, in bytes (4 GiB, 4.29 GB): the maps it is given
-/// and the ones it builds from them. A 4096² roughness map at the default 8 levels with a
-/// density map of its size (4.16 GB) fits; at 9 levels (4.61 GB) it does not.
+/// and the ones it builds from them. An 8192² density map takes 0.85 GB; a 4096² roughness map
+/// fits at up to 19 levels (4.17 GB), 18 with a density map of its size; an 8192² one at 4.
 pub const MAX_MAP_BYTES: u64 = 4 << 30;
 
 /// What a material's maps hold, in bytes, counted from their sizes.
@@ -132,7 +132,7 @@ mod tests {
     /// built, naming the bytes, the levels and the map's size; fewer levels pass.
     #[test]
     fn a_material_over_the_budget_is_refused_before_building() {
-        // 4096² texels of 97 values: each level map needs 447 MB, 64 of them 29 GB.
+        // 4096² texels of 97 values: each level map needs 213 MB, 64 of them 13.6 GB.
         let (width, height) = (4096, 4096);
         let alphas: Vec<f64> = (0..width * height)
             .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
@@ -148,7 +148,7 @@ mod tests {
             panic!("{error}");
         };
         assert_eq!(bytes.level_maps, 64);
-        assert!(bytes.total() > 28_000_000_000, "{}", bytes.total());
+        assert!(bytes.total() > 13_000_000_000, "{}", bytes.total());
         let message = error.to_string();
         for part in [
             "roughness_levels = 64",
@@ -171,8 +171,8 @@ mod tests {
         let message = tinted.to_string();
         assert!(message.contains("a tint map costs"), "{message}");
         assert!(!error.to_string().contains("a tint map costs"));
-        // Without a density map 9 levels (4.16 GB) fit and 10 (4.61 GB) do not.
-        assert!(MapBytes::of(&material(9)).unwrap().check().is_ok());
-        assert!(MapBytes::of(&material(10)).unwrap().check().is_err());
+        // Without a density map 19 levels (4.17 GB) fit and 20 (4.39 GB) do not.
+        assert!(MapBytes::of(&material(19)).unwrap().check().is_ok());
+        assert!(MapBytes::of(&material(20)).unwrap().check().is_err());
     }
 }

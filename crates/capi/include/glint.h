@@ -154,7 +154,7 @@ typedef struct GlintScratch GlintScratch;
  * | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
  * | `dense_node_scale` | 1 | (0, 16]: the largest node sampled, in widths of the query |
  *
- * A map has width × height ≤ 2^24 texels, row 0 at the top of the texture; it is copied, so
+ * A map has width × height ≤ 2^28 texels, row 0 at the top of the texture; it is copied, so
  * the caller's array may be freed once `glint_material_new` returns. A bad texel is an error
  * naming the map and the texel (column, row).
  *

@@ -629,7 +629,7 @@ unsafe fn set_maps(
         let texels = width as usize * height as usize;
         if texels == 0 || texels > DensityMap::MAX_TEXELS {
             return Err(Failure::parameter(format!(
-                "{name} is {width} x {height} texels: a map needs 1 to 2^24 texels"
+                "{name} is {width} x {height} texels: a map needs 1 to 2^28 texels"
             )));
         }
         // SAFETY: non-NULL, and `texels × channels` readable doubles by the contract.

@@ -785,7 +785,7 @@ mod tests {
         assert_eq!(RgbImage::from_png_bytes(&png).unwrap().pixels.len(), 12);
         for (width, height, words) in [
             (60_000, 60_000, "wider or higher than the limit of 16384"),
-            (16_384, 16_384, "more than the limit of 16777216 pixels"),
+            (16_384, 16_384, "more than the limit of 67108864 pixels"),
         ] {
             let mut crafted = png.clone();
             patch_png_size(&mut crafted, width, height, true);

@@ -67,12 +67,14 @@ pub const MAX_PRIMITIVES: usize = 1 << 24;
 /// limit.
 pub const MAX_IMAGE_SIDE: usize = 16384;
 
-/// The most pixels of one image read: 2²⁴ (4096 × 4096, 8192 × 2048), 400 MB once decoded to
-/// linear RGB doubles. Checked against the file's header before anything is allocated.
-pub const MAX_IMAGE_PIXELS: usize = 1 << 24;
+/// The most pixels of one image read: 2²⁶ (8192 × 8192, a production texture), 1.6 GB once
+/// decoded to linear RGB doubles (freed once its glint map is built). Checked against the
+/// file's header before anything is allocated.
+pub const MAX_IMAGE_PIXELS: usize = 1 << 26;
 
-/// The most pixels of all images one scene reads together: four images of the largest size.
-pub const MAX_SCENE_PIXELS: usize = 1 << 26;
+/// The most pixels of all images one scene reads together: two images of the largest size
+/// (or eight of 4096 × 4096), 3.2 GB decoded.
+pub const MAX_SCENE_PIXELS: usize = 1 << 27;
 
 /// The largest scene file read: 16 MiB, far more than a scene of hand-written shapes needs.
 pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;

@@ -14,17 +14,19 @@
 //! - **Expectations** ([`DensityMap::mass_in`]): ∫_A d over a footprint, for the expected count
 //!   N·∫_A d·∫p.
 //!
-//! Masses are exact sums of integers: texel values are stored in fixed point (multiples of
-//! 2⁻³², so d = 0 is exactly 0 and a box of zero texels has mass exactly 0), in summed-area
-//! tables of u64, combined with the box's partial texel weights in one final floating-point
-//! step. Whether a box is constant is a count of value changes between neighbouring texels
-//! inside it, from two more summed-area tables: O(1) per box.
+//! Masses are exact sums of integers: texel values are fixed point (multiples of 2⁻³², so
+//! d = 0 is exactly 0 and a box of zero texels has mass exactly 0), held only in a summed-area
+//! table of u64 (a texel's value is the table's second difference there), combined with the
+//! box's partial texel weights in one final floating-point step. Whether a box is constant is
+//! a count of value changes between neighbouring texels inside it, from one more summed-area
+//! table: O(1) per box (see [`DensityMap::is_constant_over`]).
 //!
 //! - **Bounds** ([`DensityMap::max_over`]): an upper bound on d over a footprint, from a
-//!   pyramid of maxima, for the negligible-query test.
+//!   pyramid of maxima over blocks of 4 × 4 texels and up, for the negligible-query test.
 //!
-//! Memory: about 27 bytes per texel (the map's own values, its table, the change tables and
-//! the pyramid of maxima), at most [`DensityMap::MAX_TEXELS`] texels.
+//! Memory: about 12.7 bytes per texel (8 for the summed-area table, which also holds the
+//! values, 4 for the table of changes, 0.7 for the pyramid of maxima), at most
+//! [`DensityMap::MAX_TEXELS`] texels.
 
 use std::fmt;
 
@@ -34,6 +36,10 @@ use crate::footprint::Footprint;
 
 /// Fixed-point scale of stored values: d is held as round(d·2³²).
 const FIXED_ONE: f64 = 4_294_967_296.0;
+
+/// The finest level of the pyramid of maxima: blocks of 4 × 4 texels (the 2 × 2 level would
+/// cost 2 bytes a texel; its blocks are read from the texels instead, at most 16 of them).
+const FIRST_MAX_LEVEL: usize = 2;
 
 /// Footprints whose bounding box covers more texels than this get their mass from the
 /// map's mean (as the tree averages footprints over many tiles): integrating them texel by
@@ -102,20 +108,20 @@ impl std::error::Error for DensityMapError {}
 pub struct DensityMap {
     width: usize,
     height: usize,
-    /// Texel values in fixed point, row j covering v ∈ [j/H, (j + 1)/H) (row 0 at v = 0).
-    fixed: Vec<u64>,
-    /// `sat[j·(W + 1) + i]`: the sum of `fixed` over rows < j and columns < i.
+    /// `sat[j·(W + 1) + i]`: the sum of the fixed-point texel values q over rows < j and
+    /// columns < i, row j covering v ∈ [j/H, (j + 1)/H) (row 0 at v = 0).
     sat: Vec<u64>,
-    /// Summed-area table of [value of (j, i) ≠ value of (j, i + 1)], i < W − 1 (stride W).
-    column_changes: Vec<u32>,
-    /// Summed-area table of [value of (j, i) ≠ value of (j + 1, i)], j < H − 1 (stride W + 1).
-    row_changes: Vec<u32>,
+    /// `changes[j·(W + 1) + i]`: the sum over rows < j and columns < i of the texel changes
+    /// g(i, j) = [q(i, j) ≠ q(i + 1, j)] + [q(i, j) ≠ q(i, j + 1)], a neighbour outside the
+    /// map counting as no change.
+    changes: Vec<u32>,
     /// The value when every texel has it.
     uniform: Option<f64>,
     /// ∫d over the unit square.
     mean: f64,
-    /// Maxima of `fixed` over blocks of 2^L × 2^L texels, L = 1, 2, … until one block holds
-    /// the map (level L − 1 at index L − 1; block (i, j) covers texels [i·2^L, (i + 1)·2^L)).
+    /// Maxima of q over blocks of 2^L × 2^L texels, L = [`FIRST_MAX_LEVEL`], … until one
+    /// block holds the map (level L at index L − [`FIRST_MAX_LEVEL`]; block (i, j) covers
+    /// texels [i·2^L, (i + 1)·2^L)). Smaller blocks are read from the texels.
     max_levels: Vec<MaxLevel>,
 }
 
@@ -170,17 +176,6 @@ impl TexelSpan {
         }
     }
 
-    /// The fraction of texel k covered (k in [first, last]).
-    fn weight(&self, k: usize) -> f64 {
-        if k == self.first {
-            self.first_weight
-        } else if k == self.last {
-            self.last_weight
-        } else {
-            1.0
-        }
-    }
-
     /// The span as up to three groups (first, interior, last) of texels [a, b) and weights.
     fn groups(&self) -> impl Iterator<Item = (usize, usize, f64)> {
         let single = self.first == self.last;
@@ -196,23 +191,20 @@ impl TexelSpan {
 }
 
 impl DensityMap {
-    /// The largest map: 2²⁴ texels (4096 × 4096), 448 MB of tables ([`Self::bytes_for`]).
-    pub const MAX_TEXELS: usize = 1 << 24;
+    /// The largest map: 2²⁸ texels (16384 × 16384, or 8192 × 32768), 3.4 GB of tables
+    /// ([`Self::bytes_for`]). The tables' integers hold any map up to 2³¹ texels; the bound
+    /// keeps one map within a material's budget (`glint_brdf::MAX_MAP_BYTES`).
+    pub const MAX_TEXELS: usize = 1 << 28;
 
-    /// The heap memory, in bytes, of a `width` × `height` map: its fixed-point values and
-    /// summed-area table (8 bytes a texel each), the two tables of value changes (4 bytes a
-    /// texel each) and the pyramid of maxima (about 8/3 bytes a texel). A function of the size
-    /// alone, so a material can check its budget before it builds a map.
+    /// The heap memory, in bytes, of a `width` × `height` map: its summed-area table (8 bytes
+    /// a texel), the table of value changes (4 bytes a texel) and the pyramid of maxima (about
+    /// 2/3 of a byte a texel). A function of the size alone, so a material can check its budget
+    /// before it builds a map.
     #[must_use]
     pub fn bytes_for(width: usize, height: usize) -> usize {
-        let u64s = width * height + (width + 1) * (height + 1);
-        let u32s = (height + 1) * width + height * (width + 1);
-        let (mut w, mut h, mut maxima) = (width, height, 0);
-        while w > 1 || h > 1 {
-            (w, h) = (w.div_ceil(2), h.div_ceil(2));
-            maxima += w * h;
-        }
-        8 * (u64s + maxima) + 4 * u32s
+        let corners = (width + 1) * (height + 1);
+        let maxima: usize = pyramid_sizes(width, height).map(|(w, h)| w * h).sum();
+        8 * (corners + maxima) + 4 * corners
     }
 
     /// The heap memory this map holds, in bytes: [`Self::bytes_for`] its size.
@@ -237,56 +229,52 @@ impl DensityMap {
                 given: values.len(),
             });
         }
-        let mut fixed = vec![0u64; texels];
-        for (k, &value) in values.iter().enumerate() {
+        if let Some(k) = values.iter().position(|value| !(0.0..=1.0).contains(value)) {
             let (row, column) = (k / width, k % width);
-            if !(0.0..=1.0).contains(&value) {
-                return Err(DensityMapError::InvalidTexel { column, row, value });
-            }
-            let j = height - 1 - row;
-            fixed[j * width + column] = (value * FIXED_ONE).round() as u64;
+            let value = values[k];
+            return Err(DensityMapError::InvalidTexel { column, row, value });
         }
+        // Row j (from v = 0) is row H − 1 − j of the values as given.
+        let q = |i: usize, j: usize| fixed_point(values[(height - 1 - j) * width + i]);
+        let row_of = |j: usize, row: &mut Vec<u64>| {
+            row.clear();
+            row.extend((0..width).map(|i| q(i, j)));
+        };
         let stride = width + 1;
         let mut sat = vec![0u64; (height + 1) * stride];
+        let mut changes = vec![0u32; (height + 1) * stride];
+        let (mut row, mut above) = (Vec::with_capacity(width), Vec::with_capacity(width));
+        row_of(0, &mut row);
+        let first = row[0];
+        let mut uniform = true;
         for j in 0..height {
-            let mut row_sum = 0u64;
+            if j + 1 < height {
+                row_of(j + 1, &mut above);
+            }
+            let (mut row_sum, mut row_changes) = (0u64, 0u32);
             for i in 0..width {
-                row_sum += fixed[j * width + i];
+                let value = row[i];
+                uniform &= value == first;
+                row_sum += value;
+                row_changes += u32::from(i + 1 < width && row[i + 1] != value)
+                    + u32::from(j + 1 < height && above[i] != value);
                 sat[(j + 1) * stride + i + 1] = sat[j * stride + i + 1] + row_sum;
+                changes[(j + 1) * stride + i + 1] = changes[j * stride + i + 1] + row_changes;
             }
+            std::mem::swap(&mut row, &mut above);
         }
-        let changes = |changed: &dyn Fn(usize, usize) -> bool, columns: usize, rows: usize| {
-            let stride = columns + 1;
-            let mut table = vec![0u32; (rows + 1) * stride];
-            for j in 0..rows {
-                let mut row_sum = 0u32;
-                for i in 0..columns {
-                    row_sum += u32::from(changed(j, i));
-                    table[(j + 1) * stride + i + 1] = table[j * stride + i + 1] + row_sum;
-                }
-            }
-            table
-        };
-        let at = |j: usize, i: usize| fixed[j * width + i];
-        let column_changes = changes(&|j, i| at(j, i) != at(j, i + 1), width - 1, height);
-        let row_changes = changes(&|j, i| at(j, i) != at(j + 1, i), width, height - 1);
         let total = sat[height * stride + width];
         if total == 0 {
             return Err(DensityMapError::Empty);
         }
-        let uniform = fixed
-            .iter()
-            .all(|&q| q == fixed[0])
-            .then(|| fixed[0] as f64 / FIXED_ONE);
+        let uniform = uniform.then(|| first as f64 / FIXED_ONE);
         let mean = total as f64 / (FIXED_ONE * texels as f64);
-        let max_levels = max_pyramid(&fixed, width, height);
+        let max_levels = max_pyramid(&q, width, height);
         Ok(Self {
             width,
             height,
-            fixed,
             sat,
-            column_changes,
-            row_changes,
+            changes,
             uniform,
             mean,
             max_levels,
@@ -314,19 +302,40 @@ impl DensityMap {
     /// The largest value (as stored).
     #[must_use]
     pub fn max(&self) -> f64 {
-        // The pyramid's last level is one block over the whole map (a 1 × 1 map has none).
+        // The pyramid's last level is one block over the whole map.
         let top = self
             .max_levels
             .last()
-            .map_or(&self.fixed, |level| &level.maxima);
+            .map_or(&[][..], |level| &level.maxima);
         top.iter().copied().max().unwrap_or(0) as f64 / FIXED_ONE
     }
 
     /// d of the texel in `column` and `row`, row 0 at the top as given (as stored).
     #[must_use]
     pub fn texel(&self, column: usize, row: usize) -> f64 {
-        let j = self.height - 1 - row;
-        self.fixed[j * self.width + column] as f64 / FIXED_ONE
+        self.fixed(column, self.height - 1 - row) as f64 / FIXED_ONE
+    }
+
+    /// The fixed-point value q of texel (i, j), j counted from v = 0: the summed-area table's
+    /// second difference.
+    fn fixed(&self, i: usize, j: usize) -> u64 {
+        self.rect_sum((i, i + 1), (j, j + 1))
+    }
+
+    /// The largest q over block (i, j) of 2^`level` × 2^`level` texels: the pyramid's entry, or
+    /// the texels' own values for blocks finer than [`FIRST_MAX_LEVEL`].
+    fn block_max(&self, level: usize, i: usize, j: usize) -> Option<u64> {
+        if level < FIRST_MAX_LEVEL {
+            let (columns, rows) = (i << level..(i + 1) << level, j << level..(j + 1) << level);
+            let columns = columns.start..columns.end.min(self.width);
+            let rows = rows.start..rows.end.min(self.height);
+            return rows
+                .flat_map(|j| columns.clone().map(move |i| (i, j)))
+                .map(|(i, j)| self.fixed(i, j))
+                .max();
+        }
+        let blocks = self.max_levels.get(level - FIRST_MAX_LEVEL)?;
+        Some(blocks.maxima[j * blocks.width + i])
     }
 
     /// An upper bound on d over the footprint's parallelogram (its bounding box, wrapped):
@@ -366,28 +375,20 @@ impl DensityMap {
         // The level whose blocks are at least as wide as the longest span: at most two blocks
         // per span and axis.
         let level = (usize::BITS - (longest - 1).leading_zeros()) as usize;
-        let largest = |blocks: &dyn Fn(usize, usize) -> u64, shift: usize| {
-            let mut largest = 0;
-            for &(c0, c1) in &columns {
-                for &(r0, r1) in &rows {
-                    for j in (r0 >> shift)..=(r1 >> shift) {
-                        for i in (c0 >> shift)..=(c1 >> shift) {
-                            largest = largest.max(blocks(i, j));
+        let mut largest = 0;
+        for &(c0, c1) in &columns {
+            for &(r0, r1) in &rows {
+                for j in (r0 >> level)..=(r1 >> level) {
+                    for i in (c0 >> level)..=(c1 >> level) {
+                        match self.block_max(level, i, j) {
+                            Some(block) => largest = largest.max(block),
+                            None => return self.max(),
                         }
                     }
                 }
             }
-            largest
-        };
-        let fixed = if level == 0 {
-            largest(&|i, j| self.fixed[j * self.width + i], 0)
-        } else {
-            match self.max_levels.get(level - 1) {
-                Some(blocks) => largest(&|i, j| blocks.maxima[j * blocks.width + i], level),
-                None => return self.max(),
-            }
-        };
-        fixed as f64 / FIXED_ONE
+        }
+        largest as f64 / FIXED_ONE
     }
 
     /// d at texture point `x`, wrapped into the unit square (as stored).
@@ -396,7 +397,7 @@ impl DensityMap {
         let x = x - x.floor();
         let i = ((x.x * self.width as f64) as usize).min(self.width - 1);
         let j = ((x.y * self.height as f64) as usize).min(self.height - 1);
-        self.fixed[j * self.width + i] as f64 / FIXED_ONE
+        self.fixed(i, j) as f64 / FIXED_ONE
     }
 
     /// Σ of fixed-point values over texel columns [i0, i1) × rows [j0, j1).
@@ -407,7 +408,16 @@ impl DensityMap {
             - self.sat[j1 * s + i0]
     }
 
-    /// Whether d takes one value over the box [min, min + size]² (inside the unit square).
+    /// Whether d takes one value over the box [min, min + size]² (inside the unit square): over
+    /// the texels it covers with positive length, columns c₀…c₁ and rows r₀…r₁.
+    ///
+    /// With c₀ < c₁ and r₀ < r₁ that is O(1): the box is constant exactly when Σg over the
+    /// texels [c₀, c₁) × [r₀, r₁) is 0 (each equals its right and upper neighbours, which
+    /// chains every texel of the box to (c₀, r₀) but the corner (c₁, r₁)) and the corner
+    /// equals its left neighbour. A box within one row (or column) reads g's right (upper)
+    /// changes alone in the map's last row (column), where g has no upper (right) ones, and
+    /// compares its texels elsewhere: such a box is under a texel tall, so it spans fewer than
+    /// W/H + 2 texels.
     #[must_use]
     pub fn is_constant_over(&self, min: DVec2, size: f64) -> bool {
         if self.uniform.is_some() {
@@ -415,28 +425,23 @@ impl DensityMap {
         }
         let columns = TexelSpan::new(min.x, min.x + size, self.width);
         let rows = TexelSpan::new(min.y, min.y + size, self.height);
-        let count = |table: &[u32], stride: usize, (i0, i1): (usize, usize), (j0, j1)| {
-            if i1 <= i0 || j1 <= j0 {
-                return 0;
-            }
-            table[j1 * stride + i1] + table[j0 * stride + i0]
-                - table[j0 * stride + i1]
-                - table[j1 * stride + i0]
+        let (c0, c1, r0, r1) = (columns.first, columns.last, rows.first, rows.last);
+        let changes = |(i0, i1): (usize, usize), (j0, j1): (usize, usize)| {
+            let s = self.width + 1;
+            self.changes[j1 * s + i1] + self.changes[j0 * s + i0]
+                - self.changes[j0 * s + i1]
+                - self.changes[j1 * s + i0]
         };
-        // Changes between columns i and i + 1 for first ≤ i < last, over the rows spanned;
-        // between rows j and j + 1 for first ≤ j < last, over the columns spanned.
-        count(
-            &self.column_changes,
-            self.width,
-            (columns.first, columns.last),
-            (rows.first, rows.last + 1),
-        ) == 0
-            && count(
-                &self.row_changes,
-                self.width + 1,
-                (columns.first, columns.last + 1),
-                (rows.first, rows.last),
-            ) == 0
+        match (c0 < c1, r0 < r1) {
+            (false, false) => true,
+            (true, true) => {
+                changes((c0, c1), (r0, r1)) == 0 && self.fixed(c1, r1) == self.fixed(c1 - 1, r1)
+            }
+            (true, false) if r0 == self.height - 1 => changes((c0, c1), (r0, r0 + 1)) == 0,
+            (false, true) if c0 == self.width - 1 => changes((c0, c0 + 1), (r0, r1)) == 0,
+            (true, false) => (c0 + 1..=c1).all(|i| self.fixed(i, r0) == self.fixed(c0, r0)),
+            (false, true) => (r0 + 1..=r1).all(|j| self.fixed(c0, j) == self.fixed(c0, r0)),
+        }
     }
 
     /// ∫d over the box [min, min + size]² in fixed-point texel units (proportional to the
@@ -499,7 +504,7 @@ impl DensityMap {
         let (mut mass, mut weighted) = (0.0, 0.0);
         for j in rows.first..=rows.last {
             for i in columns.first..=columns.last {
-                let value = self.fixed[j * self.width + i] as f64;
+                let value = self.fixed(i, j) as f64;
                 if value == 0.0 {
                     continue;
                 }
@@ -523,21 +528,24 @@ impl DensityMap {
     /// it, u₁ the row within that column and the position within it. The inverse of the
     /// map's distribution restricted to the box, so positions follow d exactly and no texel
     /// of value 0 receives one (where the box holds mass at all).
+    ///
+    /// Each inversion is a binary search on the masses of the first k columns (rows), exact
+    /// integer sums from the summed-area table weighted by the end texels' covered fractions:
+    /// O(log) in the box's width in texels, so a sparse leaf over thousands of texels of a
+    /// production map costs about what one over a few texels does.
     #[must_use]
     pub fn place(&self, min: DVec2, size: f64, u: [f64; 2]) -> DVec2 {
         let columns = TexelSpan::new(min.x, min.x + size, self.width);
         let rows = TexelSpan::new(min.y, min.y + size, self.height);
-        let column_mass = |i: usize| {
+        // The mass of columns [a, b) over the box's rows (without the columns' weights).
+        let strip = |a: usize, b: usize| {
             rows.groups()
-                .map(|(j0, j1, w)| self.rect_sum((i, i + 1), (j0, j1)) as f64 * w)
+                .map(|(j0, j1, w)| self.rect_sum((a, b), (j0, j1)) as f64 * w)
                 .sum::<f64>()
-                * columns.weight(i)
         };
-        let total: f64 = (columns.first..=columns.last).map(column_mass).sum();
-        let (i, t) = invert(columns.first..=columns.last, column_mass, u[0] * total);
-        let cell_mass = |j: usize| self.fixed[j * self.width + i] as f64 * rows.weight(j);
-        let row_total: f64 = (rows.first..=rows.last).map(cell_mass).sum();
-        let (j, s) = invert(rows.first..=rows.last, cell_mass, u[1] * row_total);
+        let (i, t) = invert(&columns, &strip, u[0]);
+        let column = |a: usize, b: usize| self.rect_sum((i, i + 1), (a, b)) as f64;
+        let (j, s) = invert(&rows, &column, u[1]);
         let within = |k: usize, n: usize, lo: f64, hi: f64, t: f64| {
             let a = (k as f64 / n as f64).max(lo);
             let b = ((k + 1) as f64 / n as f64).min(hi);
@@ -579,7 +587,7 @@ impl DensityMap {
             for column in lo.x as i64..hi.x as i64 {
                 let (x0, x1) = (column as f64 / scale.x, (column + 1) as f64 / scale.x);
                 let i = column.rem_euclid(self.width as i64) as usize;
-                let value = self.fixed[j * self.width + i];
+                let value = self.fixed(i, j);
                 if value == 0 {
                     continue;
                 }
@@ -591,51 +599,114 @@ impl DensityMap {
     }
 }
 
-/// The pyramid of maxima of `fixed` (width × height): levels of 2 × 2 blocks of the level
-/// below, until one block covers the map.
-fn max_pyramid(fixed: &[u64], width: usize, height: usize) -> Vec<MaxLevel> {
+/// d in fixed point: round(d·2³²), for d in [0, 1].
+fn fixed_point(value: f64) -> u64 {
+    (value * FIXED_ONE).round() as u64
+}
+
+/// The width and height in blocks of the pyramid's levels, [`FIRST_MAX_LEVEL`] first, for a map
+/// of `width` × `height` texels: blocks of 2^L texels, until one block covers the map.
+fn pyramid_sizes(width: usize, height: usize) -> impl Iterator<Item = (usize, usize)> {
+    let first = (
+        width.div_ceil(1 << FIRST_MAX_LEVEL),
+        height.div_ceil(1 << FIRST_MAX_LEVEL),
+    );
+    std::iter::successors(Some(first), |&(w, h)| {
+        (w > 1 || h > 1).then(|| (w.div_ceil(2), h.div_ceil(2)))
+    })
+}
+
+/// The pyramid of maxima of q(i, j) over `width` × `height` texels: blocks of
+/// 2^[`FIRST_MAX_LEVEL`] texels, then 2 × 2 blocks of the level below, until one block covers
+/// the map.
+fn max_pyramid(q: &dyn Fn(usize, usize) -> u64, width: usize, height: usize) -> Vec<MaxLevel> {
     let mut levels: Vec<MaxLevel> = Vec::new();
-    let (mut below, mut w, mut h) = (fixed.to_vec(), width, height);
-    while w > 1 || h > 1 {
-        let (next_w, next_h) = (w.div_ceil(2), h.div_ceil(2));
+    for (next_w, next_h) in pyramid_sizes(width, height) {
         let mut maxima = vec![0u64; next_w * next_h];
-        for j in 0..h {
-            for i in 0..w {
-                let block = &mut maxima[(j / 2) * next_w + i / 2];
-                *block = (*block).max(below[j * w + i]);
+        match levels.last() {
+            None => {
+                for j in 0..height {
+                    for i in 0..width {
+                        let block =
+                            &mut maxima[(j >> FIRST_MAX_LEVEL) * next_w + (i >> FIRST_MAX_LEVEL)];
+                        *block = (*block).max(q(i, j));
+                    }
+                }
+            }
+            Some(below) => {
+                for j in 0..below.height {
+                    for i in 0..below.width {
+                        let block = &mut maxima[(j / 2) * next_w + i / 2];
+                        *block = (*block).max(below.maxima[j * below.width + i]);
+                    }
+                }
             }
         }
         levels.push(MaxLevel {
             width: next_w,
             height: next_h,
-            maxima: maxima.clone(),
+            maxima,
         });
-        (below, w, h) = (maxima, next_w, next_h);
     }
     levels
 }
 
-/// The index k of `range` where the cumulative `mass` passes `target`, and the fraction of
-/// k's own mass below it (skipping zero masses; the last positive one if rounding runs past).
-fn invert(
-    range: std::ops::RangeInclusive<usize>,
-    mass: impl Fn(usize) -> f64,
-    target: f64,
-) -> (usize, f64) {
-    let mut before = 0.0;
-    let mut last_positive = (*range.start(), 1.0);
-    for k in range {
-        let m = mass(k);
-        if m <= 0.0 {
-            continue;
+/// The texel k of `span` where the cumulative mass passes the fraction `u` of the span's total,
+/// and the fraction of k's own mass below that point; `mass(a, b)` is the mass of texels
+/// [a, b), which `span`'s end weights scale at its ends. The cumulative mass of texels
+/// [first, k) is non-decreasing in k (each of its three terms is), so a binary search finds the
+/// texel, and it never lands on one of mass 0; where rounding runs past the total, it takes
+/// the last texel with mass.
+fn invert(span: &TexelSpan, mass: &dyn Fn(usize, usize) -> f64, u: f64) -> (usize, f64) {
+    let (first, last) = (span.first, span.last);
+    let first_mass = mass(first, first + 1) * span.first_weight;
+    let last_mass = if last > first {
+        mass(last, last + 1) * span.last_weight
+    } else {
+        0.0
+    };
+    // The mass of texels [first, k), k in [first, last + 1].
+    let before = |k: usize| -> f64 {
+        if k == first {
+            return 0.0;
         }
-        if before + m > target {
-            return (k, ((target - before) / m).clamp(0.0, 1.0));
+        let interior = if last > first + 1 {
+            mass(first + 1, k.clamp(first + 1, last))
+        } else {
+            0.0
+        };
+        first_mass + interior + if k > last { last_mass } else { 0.0 }
+    };
+    let total = before(last + 1);
+    let target = u * total;
+    if !(target < total) {
+        // The last texel with mass: the largest k with before(k) < total.
+        let (mut lo, mut hi) = (first, last + 1);
+        if !(before(lo) < total) {
+            return (first, 1.0);
         }
-        before += m;
-        last_positive = (k, 1.0);
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if before(mid) < total {
+                lo = mid
+            } else {
+                hi = mid
+            }
+        }
+        return (lo, 1.0);
     }
-    last_positive
+    // before(lo) ≤ target < before(hi) throughout.
+    let (mut lo, mut hi) = (first, last + 1);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if before(mid) <= target {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let (below, above) = (before(lo), before(lo + 1));
+    (lo, ((target - below) / (above - below)).clamp(0.0, 1.0))
 }
 
 /// The convex polygon `points` cut to where both `inside_a` and `inside_b` are ≥ 0
@@ -692,15 +763,13 @@ mod tests {
                 .collect();
             let map = DensityMap::new(width, height, &values).unwrap();
             let held = 8
-                * (map.fixed.len()
-                    + map.sat.len()
-                    + map.max_levels.iter().map(|l| l.maxima.len()).sum::<usize>())
-                + 4 * (map.column_changes.len() + map.row_changes.len());
+                * (map.sat.len() + map.max_levels.iter().map(|l| l.maxima.len()).sum::<usize>())
+                + 4 * map.changes.len();
             assert_eq!(map.heap_bytes(), held, "{width} x {height}");
         }
-        // About 27 bytes a texel for a large map, as the module docs say.
-        let per_texel = DensityMap::bytes_for(4096, 4096) as f64 / (4096.0 * 4096.0);
-        assert!((26.5..27.0).contains(&per_texel), "{per_texel}");
+        // About 12.7 bytes a texel for a large map, as the module docs say.
+        let per_texel = DensityMap::bytes_for(8192, 8192) as f64 / (8192.0 * 8192.0);
+        assert!((12.6..12.7).contains(&per_texel), "{per_texel}");
     }
 
     /// A map of `width` × `height` with a few repeated values (so some boxes are constant),
@@ -741,7 +810,17 @@ mod tests {
 
     #[test]
     fn quarter_probabilities_and_constancy_match_the_texels() {
-        for (w, h, seed) in [(8, 8, 1), (7, 5, 2), (37, 23, 3), (1, 9, 4), (64, 1, 5)] {
+        // Maps much wider than tall (and the reverse) have boxes within one row (column)
+        // away from the last one, which compare their texels.
+        for (w, h, seed) in [
+            (8, 8, 1),
+            (7, 5, 2),
+            (37, 23, 3),
+            (1, 9, 4),
+            (64, 1, 5),
+            (128, 4, 6),
+            (3, 70, 7),
+        ] {
             let (map, values) = patchy(w, h, seed);
             for level in 0..8u32 {
                 let size = 0.5f64.powi(level as i32);
@@ -854,6 +933,75 @@ mod tests {
                         "texel ({i}, {j}) of box {min} {size}: {observed} against {expected}"
                     );
                 }
+            }
+        }
+    }
+
+    /// The binary searches place a particle where the plain inversion puts it: walking the
+    /// box's texel columns (then the chosen column's rows) and accumulating their masses from
+    /// the values as stored, on boxes across texel edges, within one texel and over the whole
+    /// map, with u at texel boundaries included.
+    #[test]
+    fn placement_is_the_inverse_of_the_walked_masses() {
+        for (w, h, seed) in [(7, 5, 9), (37, 23, 3), (1, 9, 4), (64, 1, 5), (128, 4, 6)] {
+            let (map, _) = patchy(w, h, seed);
+            let stored = |i: usize, j: usize| map.texel(i, h - 1 - j);
+            let mut rng = TeaRng::new([seed, 5, 5, 5], 0, 8);
+            for k in 0..400 {
+                let size = 0.5f64.powi((k % 9) as i32);
+                let [a, b] = unit_pair(rng.next_bits());
+                let min = (DVec2::new(a, b) * (1.0 - size) / size).floor() * size;
+                let u = if k % 5 == 0 {
+                    [0.0, (k % 3) as f64 / 3.0]
+                } else {
+                    unit_pair(rng.next_bits())
+                };
+                let covered = |lo: f64, hi: f64, t: usize, n: usize| {
+                    ((hi.min((t + 1) as f64 / n as f64) - lo.max(t as f64 / n as f64)) * n as f64)
+                        .max(0.0)
+                };
+                let walk = |masses: &[(usize, f64)], target: f64| {
+                    let total: f64 = masses.iter().map(|m| m.1).sum();
+                    let target = target * total;
+                    let mut before = 0.0;
+                    for &(t, m) in masses {
+                        if m > 0.0 && before + m > target {
+                            return (t, (target - before) / m);
+                        }
+                        before += m;
+                    }
+                    let last = masses.iter().rev().find(|m| m.1 > 0.0).unwrap();
+                    (last.0, 1.0)
+                };
+                let column_masses: Vec<(usize, f64)> = (0..w)
+                    .map(|i| {
+                        let mass: f64 = (0..h)
+                            .map(|j| stored(i, j) * covered(min.y, min.y + size, j, h))
+                            .sum();
+                        (i, mass * covered(min.x, min.x + size, i, w))
+                    })
+                    .filter(|&(i, _)| covered(min.x, min.x + size, i, w) > 0.0)
+                    .collect();
+                if column_masses.iter().all(|m| m.1 == 0.0) {
+                    continue;
+                }
+                let (i, t) = walk(&column_masses, u[0]);
+                let row_masses: Vec<(usize, f64)> = (0..h)
+                    .filter(|&j| covered(min.y, min.y + size, j, h) > 0.0)
+                    .map(|j| (j, stored(i, j) * covered(min.y, min.y + size, j, h)))
+                    .collect();
+                let (j, s) = walk(&row_masses, u[1]);
+                let at = |t: usize, n: usize, lo: f64, f: f64| {
+                    let a = (t as f64 / n as f64).max(lo);
+                    let b = ((t + 1) as f64 / n as f64).min(lo + size);
+                    a + f * (b - a)
+                };
+                let expected = DVec2::new(at(i, w, min.x, t), at(j, h, min.y, s));
+                let placed = map.place(min, size, u);
+                assert!(
+                    (placed - expected).abs().max_element() < 1e-12,
+                    "{w}x{h} box {min} {size}, u {u:?}: {placed} against {expected}"
+                );
             }
         }
     }
@@ -1016,6 +1164,21 @@ mod tests {
             Err(DensityMapError::InvalidSize {
                 width: 0,
                 height: 3
+            })
+        );
+        // Sizes up to 2^28 texels are valid (8192 x 8192 and 16384 x 16384: only the values'
+        // count is wrong here), larger ones are not.
+        for (width, height) in [(8192, 8192), (16384, 16384)] {
+            assert!(matches!(
+                DensityMap::new(width, height, &[1.0]),
+                Err(DensityMapError::WrongLength { .. })
+            ));
+        }
+        assert_eq!(
+            DensityMap::new(16384, 16385, &[1.0]),
+            Err(DensityMapError::InvalidSize {
+                width: 16384,
+                height: 16385
             })
         );
         assert_eq!(
