@@ -311,7 +311,8 @@ impl DirectionalSplit {
         density: &NormalDensity,
     ) -> Self {
         let children = cell.children();
-        let solid_angles = children.map(|c| c.solid_angle());
+        let triangles = children.map(|c| c.triangle.expect("every child is a triangle"));
+        let solid_angles = SphericalTriangle::solid_angles_of(&triangles);
         let probabilities = quadrature.split_probabilities(&children, &solid_angles, density);
         Self {
             children,
@@ -343,7 +344,9 @@ impl DirectionalSplits {
     /// The splits of the cells of depths 0 to `levels` − 1 and of the deeper cells with a
     /// table entry (about 450 bytes each).
     pub(crate) fn build(quadrature: &NdfQuadrature, density: &NormalDensity, levels: u32) -> Self {
-        let mut splits = Vec::new();
+        // The coarse splits, and at most one per table entry below them, allocated once.
+        let coarse = ((1usize << (2 * levels)) - 1) / 3;
+        let mut splits = Vec::with_capacity(coarse + quadrature.len());
         let mut level = vec![DirectionalCell::HEMISPHERE];
         for _ in 0..levels {
             let mut next = Vec::with_capacity(4 * level.len());
@@ -354,7 +357,7 @@ impl DirectionalSplits {
             }
             level = next;
         }
-        let coarse = splits.len();
+        debug_assert_eq!(coarse, splits.len());
         // A cell has a table entry only if its parent has one (Alg. 2 recurses from there).
         let mut non_uniform = HashMap::default();
         let mut pending = level;

@@ -353,7 +353,9 @@ impl CountTree {
     /// Breadth first, so that entries land in label order within each depth.
     fn build_top_levels(&self) -> TopLevels {
         let levels = self.config.cached_levels;
-        let mut entries = Vec::new();
+        // (4^levels − 1)/3 entries, allocated once (growing by doubling copied them about
+        // twice over and touched twice the fresh pages).
+        let mut entries = Vec::with_capacity(((1usize << (2 * levels)) - 1) / 3);
         let mut level = vec![self.root()];
         for _ in 0..levels {
             let mut next = Vec::with_capacity(4 * level.len());
