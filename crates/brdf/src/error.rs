@@ -78,6 +78,14 @@ pub enum BrdfError {
         /// The roughness map's width and height.
         alpha: (usize, usize),
     },
+    /// The density and roughness maps must be reconstructed alike (the levels' densities
+    /// d·w_k take the roughness map's filter).
+    MapFiltersDiffer {
+        /// The density map's filter.
+        density: glint_tree::MapFilter,
+        /// The roughness map's filter.
+        alpha: glint_tree::MapFilter,
+    },
     /// Roughness levels must be 1 to 64.
     InvalidRoughnessLevels {
         /// The rejected value.
@@ -162,6 +170,12 @@ impl fmt::Display for BrdfError {
                 f,
                 "density_map is {} x {} texels and alpha_map {} x {}: they must have the same size",
                 density.0, density.1, alpha.0, alpha.1
+            ),
+            Self::MapFiltersDiffer { density, alpha } => write!(
+                f,
+                "density_map is filtered \"{}\" and alpha_map \"{}\": give both one map_filter",
+                density.name(),
+                alpha.name()
             ),
             Self::InvalidRoughnessLevels { levels } => {
                 write!(f, "{levels} roughness levels requested: use 1 to 64")

@@ -71,7 +71,8 @@ pub use glam::{DVec2, DVec3};
 pub use glint::{GlintBxdf, GlintEvaluation};
 pub use glint_sampling::PdfQuadrature;
 pub use glint_tree::{
-    DenseCounts, DensityMap, DensityMapError, Footprint, MultinomialMode, QueryScratch, TreeError,
+    DenseCounts, DensityMap, DensityMapError, Footprint, MapFilter, MultinomialMode, QueryScratch,
+    TreeError,
 };
 pub use map_budget::{MAX_MAP_BYTES, MapBytes};
 pub use smooth::MicrofacetBrdf;

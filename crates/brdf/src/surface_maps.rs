@@ -12,7 +12,11 @@
 //! in log α between the map's extremes and w_k are the hat functions of log α (a flake at α
 //! between α_k and α_k+1 is a flake of one or the other, with weights linear in log α): the
 //! approximation, whose error against the exact per-texel lobe `cargo xtask validate`
-//! measures for K = 2…16 (`GlintParameters::roughness_levels`, default 8).
+//! measures for K = 2…16 (`GlintParameters::roughness_levels`, default 8). A roughness map
+//! built [`RoughnessMap::with_filter`] bilinear reconstructs each level's density d·w_k
+//! bilinearly from its texel values: the levels' shares of the flakes, and so the law of a
+//! flake's roughness, vary continuously across texels, exact for that reconstruction (the
+//! density map must then be bilinear too).
 //!
 //! **Tint.** A colour t(x) ∈ [0, 1]³ that scales the flakes' reflectance. A footprint's flakes
 //! take the tint filtered over it: the flakes' mean tint t̄ = ∫_A d·t / ∫_A d when the material
@@ -27,7 +31,7 @@
 use std::sync::Arc;
 
 use glam::{DVec2, DVec3};
-use glint_tree::{DensityMap, DensityMapError, Footprint};
+use glint_tree::{DensityMap, DensityMapError, Footprint, MapFilter};
 
 use crate::error::BrdfError;
 
@@ -44,6 +48,8 @@ pub struct RoughnessMap {
     height: usize,
     /// α by texel, row 0 at the top.
     values: Vec<f64>,
+    /// How the roughness levels' densities are reconstructed between texels.
+    filter: MapFilter,
 }
 
 impl RoughnessMap {
@@ -67,7 +73,23 @@ impl RoughnessMap {
             width,
             height,
             values: values.to_vec(),
+            filter: MapFilter::Nearest,
         })
+    }
+
+    /// The map with its roughness levels' densities d·w_k reconstructed by `filter` between
+    /// the texels (bilinear: each level's share of the flakes, and so the flakes' roughness,
+    /// varies continuously; see the module docs).
+    #[must_use]
+    pub fn with_filter(mut self, filter: MapFilter) -> Self {
+        self.filter = filter;
+        self
+    }
+
+    /// How the roughness levels' densities are reconstructed between texels.
+    #[must_use]
+    pub fn filter(&self) -> MapFilter {
+        self.filter
     }
 
     /// Width and height in texels.
@@ -216,7 +238,7 @@ impl WeightedTint {
             let texels: Vec<f64> = (0..width * height)
                 .map(|k| density.texel(k % width, k / width) * tint.values[k][c])
                 .collect();
-            match DensityMap::new(width, height, &texels) {
+            match DensityMap::with_filter(width, height, &texels, density.filter()) {
                 Ok(map) => Ok(Some(Arc::new(map))),
                 Err(DensityMapError::Empty) => Ok(None),
                 Err(error) => Err(BrdfError::DensityMap(error)),
@@ -371,6 +393,14 @@ pub(crate) fn roughness_levels(
             alpha: (width, height),
         });
     }
+    if let Some(density) = density
+        && density.filter() != alpha.filter()
+    {
+        return Err(BrdfError::MapFiltersDiffer {
+            density: density.filter(),
+            alpha: alpha.filter(),
+        });
+    }
     let d = |k: usize| density.map_or(1.0, |map| map.texel(k % width, k / width));
     let (alphas, exact) = level_alphas(alpha, levels)?;
     // Texel k's weights: 1 on its own α where exact, else the hat functions of log α centred
@@ -412,7 +442,7 @@ pub(crate) fn roughness_levels(
         let values: Vec<f64> = (0..width * height)
             .map(|k| (d(k) * weight(k, level)).clamp(0.0, 1.0))
             .collect();
-        match DensityMap::new(width, height, &values) {
+        match DensityMap::with_filter(width, height, &values, alpha.filter()) {
             Ok(map) => result.push(RoughnessLevel {
                 alpha: Some(level_alpha),
                 density: Some(Arc::new(map)),

@@ -1,6 +1,8 @@
 //! A density map d(x) ∈ [0, 1] over the particles' unit square: the particle density at
-//! texture position x is N·d(x). It is piecewise constant over W × H texels and tiles with the
-//! square. The count tree reads it in three places, each exact for a piecewise-constant map:
+//! texture position x is N·d(x). It is reconstructed from W × H texels by its [`MapFilter`]:
+//! piecewise constant over each texel (`Nearest`, described here) or bilinear between the
+//! texels' centres (`Bilinear`, `density_map/bilinear.rs`), and tiles with the
+//! square. The count tree reads it in three places, each exact for the reconstructed map:
 //!
 //! - **Spatial splits** ([`DensityMap::quarter_probabilities`]): the four quarters of a box take
 //!   probabilities proportional to their mass ∫d, as directional splits take the integrals of p
@@ -34,6 +36,11 @@ use glam::DVec2;
 
 use crate::footprint::Footprint;
 
+mod bilinear;
+mod polygon;
+
+use polygon::{clip, polygon_area};
+
 /// Fixed-point scale of stored values: d is held as round(d·2³²).
 const FIXED_ONE: f64 = 4_294_967_296.0;
 
@@ -45,6 +52,40 @@ const FIRST_MAX_LEVEL: usize = 2;
 /// map's mean (as the tree averages footprints over many tiles): integrating them texel by
 /// texel would cost more than the query.
 const MAX_INTEGRATED_TEXELS: f64 = 65_536.0;
+
+/// How a map is reconstructed from its texels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum MapFilter {
+    /// Piecewise constant: each texel's value over its whole square (the edges stair-step).
+    #[default]
+    Nearest,
+    /// Bilinear between the texels' centres, wrapping as the map tiles: continuous, so a
+    /// mask's edge ramps over one texel (`density_map/bilinear.rs`).
+    Bilinear,
+}
+
+impl MapFilter {
+    /// Every filter, in the order of [`MapFilter::NAMES`].
+    pub const ALL: [Self; 2] = [Self::Nearest, Self::Bilinear];
+
+    /// The filters' names in scene files, `eval`, Python and Mitsuba.
+    pub const NAMES: [&'static str; 2] = ["nearest", "bilinear"];
+
+    /// The filter called `name` (one of [`MapFilter::NAMES`]).
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::NAMES
+            .iter()
+            .position(|n| *n == name)
+            .map(|k| Self::ALL[k])
+    }
+
+    /// Its name, as [`MapFilter::from_name`] reads it.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+}
 
 /// Why a density map was refused.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -115,6 +156,8 @@ pub struct DensityMap {
     /// g(i, j) = [q(i, j) ≠ q(i + 1, j)] + [q(i, j) ≠ q(i, j + 1)], a neighbour outside the
     /// map counting as no change.
     changes: Vec<u32>,
+    /// How d is reconstructed from the texels.
+    filter: MapFilter,
     /// The value when every texel has it.
     uniform: Option<f64>,
     /// ∫d over the unit square.
@@ -219,6 +262,20 @@ impl DensityMap {
     /// # Errors
     /// A [`DensityMapError`] naming the size, or the first texel not in [0, 1]; a map of zeros.
     pub fn new(width: usize, height: usize, values: &[f64]) -> Result<Self, DensityMapError> {
+        Self::with_filter(width, height, values, MapFilter::Nearest)
+    }
+
+    /// [`DensityMap::new`] with d reconstructed by `filter` between the texels (the tables
+    /// are the same; the counts are exact for the reconstructed d).
+    ///
+    /// # Errors
+    /// Those of [`DensityMap::new`].
+    pub fn with_filter(
+        width: usize,
+        height: usize,
+        values: &[f64],
+        filter: MapFilter,
+    ) -> Result<Self, DensityMapError> {
         let texels = width.saturating_mul(height);
         if width == 0 || height == 0 || texels > Self::MAX_TEXELS {
             return Err(DensityMapError::InvalidSize { width, height });
@@ -275,10 +332,17 @@ impl DensityMap {
             height,
             sat,
             changes,
+            filter,
             uniform,
             mean,
             max_levels,
         })
+    }
+
+    /// How d is reconstructed from the texels.
+    #[must_use]
+    pub fn filter(&self) -> MapFilter {
+        self.filter
     }
 
     /// Width and height in texels.
@@ -346,7 +410,12 @@ impl DensityMap {
         if let Some(value) = self.uniform {
             return value;
         }
-        let (min, max) = footprint.bounds();
+        let (mut min, mut max) = footprint.bounds();
+        if self.filter == MapFilter::Bilinear {
+            // The texels whose tents meet the box: one more on each side.
+            let texel = DVec2::new(1.0 / self.width as f64, 1.0 / self.height as f64);
+            (min, max) = (min - texel, max + texel);
+        }
         let spans = |lo: f64, hi: f64, n: usize| -> Option<[(usize, usize); 2]> {
             let (first, last) = ((lo * n as f64).floor(), (hi * n as f64).ceil() - 1.0);
             if !(last - first < n as f64 - 1.0) {
@@ -394,6 +463,9 @@ impl DensityMap {
     /// d at texture point `x`, wrapped into the unit square (as stored).
     #[must_use]
     pub fn value_at(&self, x: DVec2) -> f64 {
+        if self.filter == MapFilter::Bilinear {
+            return self.bilinear_fixed_at(x) / FIXED_ONE;
+        }
         let x = x - x.floor();
         let i = ((x.x * self.width as f64) as usize).min(self.width - 1);
         let j = ((x.y * self.height as f64) as usize).min(self.height - 1);
@@ -408,24 +480,31 @@ impl DensityMap {
             - self.sat[j1 * s + i0]
     }
 
-    /// Whether d takes one value over the box [min, min + size]² (inside the unit square): over
-    /// the texels it covers with positive length, columns c₀…c₁ and rows r₀…r₁.
-    ///
-    /// With c₀ < c₁ and r₀ < r₁ that is O(1): the box is constant exactly when Σg over the
-    /// texels [c₀, c₁) × [r₀, r₁) is 0 (each equals its right and upper neighbours, which
-    /// chains every texel of the box to (c₀, r₀) but the corner (c₁, r₁)) and the corner
-    /// equals its left neighbour. A box within one row (or column) reads g's right (upper)
-    /// changes alone in the map's last row (column), where g has no upper (right) ones, and
-    /// compares its texels elsewhere: such a box is under a texel tall, so it spans fewer than
-    /// W/H + 2 texels.
+    /// Whether d takes one value over the box [min, min + size]² (inside the unit square): for
+    /// the nearest filter, the texels it covers with positive length; bilinear, the texels whose
+    /// tents meet it. O(1), from the table of value changes.
     #[must_use]
     pub fn is_constant_over(&self, min: DVec2, size: f64) -> bool {
         if self.uniform.is_some() {
             return true;
         }
+        if self.filter == MapFilter::Bilinear {
+            return self.bilinear_is_constant_over(min, size);
+        }
         let columns = TexelSpan::new(min.x, min.x + size, self.width);
         let rows = TexelSpan::new(min.y, min.y + size, self.height);
-        let (c0, c1, r0, r1) = (columns.first, columns.last, rows.first, rows.last);
+        self.texels_constant((columns.first, columns.last), (rows.first, rows.last))
+    }
+
+    /// Whether texels c₀…c₁ × r₀…r₁ (inclusive, within the map) have one value.
+    ///
+    /// With c₀ < c₁ and r₀ < r₁ that is O(1): they do exactly when Σg over the texels
+    /// [c₀, c₁) × [r₀, r₁) is 0 (each equals its right and upper neighbours, which chains every
+    /// texel to (c₀, r₀) but the corner (c₁, r₁)) and the corner equals its left neighbour. One
+    /// row (or column) reads g's right (upper) changes alone in the map's last row (column),
+    /// where g has no upper (right) ones, and compares its texels elsewhere: a tree's box within
+    /// one row is under a texel tall, so it spans fewer than W/H + 2 texels.
+    fn texels_constant(&self, (c0, c1): (usize, usize), (r0, r1): (usize, usize)) -> bool {
         let changes = |(i0, i1): (usize, usize), (j0, j1): (usize, usize)| {
             let s = self.width + 1;
             self.changes[j1 * s + i1] + self.changes[j0 * s + i0]
@@ -447,6 +526,9 @@ impl DensityMap {
     /// ∫d over the box [min, min + size]² in fixed-point texel units (proportional to the
     /// mass; exactly 0 when every texel it covers is 0).
     fn box_mass(&self, min: DVec2, size: f64) -> f64 {
+        if self.filter == MapFilter::Bilinear {
+            return self.bilinear_box_mass(min, size);
+        }
         let columns = TexelSpan::new(min.x, min.x + size, self.width);
         let rows = TexelSpan::new(min.y, min.y + size, self.height);
         let mut mass = 0.0;
@@ -481,9 +563,13 @@ impl DensityMap {
     }
 
     /// Whether [`DensityMap::mean_multiplicity`] weighs the box [min, min + size]²: it covers
-    /// at most 64 texels.
+    /// at most 64 texels of a nearest-filtered map (a bilinear map's boxes are not weighed,
+    /// so the dense regime counts varying bilinear boxes exactly).
     #[must_use]
     pub fn can_weigh(&self, min: DVec2, size: f64) -> bool {
+        if self.filter == MapFilter::Bilinear {
+            return false;
+        }
         let columns = TexelSpan::new(min.x, min.x + size, self.width);
         let rows = TexelSpan::new(min.y, min.y + size, self.height);
         (columns.last - columns.first + 1) * (rows.last - rows.first + 1) <= 64
@@ -535,6 +621,9 @@ impl DensityMap {
     /// production map costs about what one over a few texels does.
     #[must_use]
     pub fn place(&self, min: DVec2, size: f64, u: [f64; 2]) -> DVec2 {
+        if self.filter == MapFilter::Bilinear {
+            return self.bilinear_place(min, size, u);
+        }
         let columns = TexelSpan::new(min.x, min.x + size, self.width);
         let rows = TexelSpan::new(min.y, min.y + size, self.height);
         // The mass of columns [a, b) over the box's rows (without the columns' weights).
@@ -565,13 +654,16 @@ impl DensityMap {
         if let Some(value) = self.uniform {
             return footprint.area() * value;
         }
+        if footprint.is_degenerate() {
+            return 0.0;
+        }
+        if self.filter == MapFilter::Bilinear {
+            return self.bilinear_mass_in(footprint);
+        }
         let (min, max) = footprint.bounds();
         let scale = DVec2::new(self.width as f64, self.height as f64);
         let (lo, hi) = ((min * scale).floor(), (max * scale).ceil());
         let texels = (hi.x - lo.x) * (hi.y - lo.y);
-        if footprint.is_degenerate() {
-            return 0.0;
-        }
         if !(texels <= MAX_INTEGRATED_TEXELS) {
             return footprint.area() * self.mean;
         }
@@ -707,45 +799,6 @@ fn invert(span: &TexelSpan, mass: &dyn Fn(usize, usize) -> f64, u: f64) -> (usiz
     }
     let (below, above) = (before(lo), before(lo + 1));
     (lo, ((target - below) / (above - below)).clamp(0.0, 1.0))
-}
-
-/// The convex polygon `points` cut to where both `inside_a` and `inside_b` are ≥ 0
-/// (Sutherland–Hodgman, each an affine function of the point).
-fn clip(
-    points: &[DVec2],
-    inside_a: impl Fn(DVec2) -> f64,
-    inside_b: impl Fn(DVec2) -> f64,
-) -> Vec<DVec2> {
-    let once = |points: &[DVec2], inside: &dyn Fn(DVec2) -> f64| {
-        let mut out = Vec::with_capacity(points.len() + 2);
-        for (k, &p) in points.iter().enumerate() {
-            let q = points[(k + 1) % points.len()];
-            let (fp, fq) = (inside(p), inside(q));
-            if fp >= 0.0 {
-                out.push(p);
-            }
-            if (fp >= 0.0) != (fq >= 0.0) {
-                out.push(p + (q - p) * (fp / (fp - fq)));
-            }
-        }
-        out
-    };
-    let first = once(points, &inside_a);
-    if first.len() < 3 {
-        return first;
-    }
-    once(&first, &inside_b)
-}
-
-/// The area of a simple polygon (shoelace).
-fn polygon_area(points: &[DVec2]) -> f64 {
-    if points.len() < 3 {
-        return 0.0;
-    }
-    let twice: f64 = (0..points.len())
-        .map(|k| points[k].perp_dot(points[(k + 1) % points.len()]))
-        .sum();
-    0.5 * twice.abs()
 }
 
 #[cfg(test)]
@@ -948,7 +1001,7 @@ mod tests {
             let stored = |i: usize, j: usize| map.texel(i, h - 1 - j);
             let mut rng = TeaRng::new([seed, 5, 5, 5], 0, 8);
             for k in 0..400 {
-                let size = 0.5f64.powi((k % 9) as i32);
+                let size = 0.5f64.powi(k % 9);
                 let [a, b] = unit_pair(rng.next_bits());
                 let min = (DVec2::new(a, b) * (1.0 - size) / size).floor() * size;
                 let u = if k % 5 == 0 {

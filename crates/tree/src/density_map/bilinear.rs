@@ -1,0 +1,544 @@
+//! The bilinear reconstruction of a density map ([`MapFilter::Bilinear`]).
+//!
+//! Texel (i, j) holds the value at its centre ((i + ½)/W, (j + ½)/H), and d interpolates the
+//! four centres around a point bilinearly, wrapping across the square's edges as the map
+//! tiles. Equivalently d is a sum of tents, each texel's value times T(xW − i − ½)·T(yH − j − ½)
+//! with T(t) = max(0, 1 − |t|), which is how everything here is exact:
+//!
+//! - **Masses.** The tents are separable, so ∫ d over a box [x₀, x₁] × [y₀, y₁] is
+//!   Σ_ij q_ij·a_i·b_j, a_i the integral of column i's tent over [x₀, x₁] in texel units (its
+//!   cumulative is the piecewise quadratic [`tent_cumulative`]). a_i is 1 for every column whose
+//!   tent lies inside the box, so the sum is the summed-area table's integer sums over a
+//!   rectangle of whole tents and at most two partly covered columns (rows) at each end, each
+//!   weighted once ([`TentSpan`]).
+//! - **Constancy.** A bilinear patch is constant on an open set only if its four corners are
+//!   equal, so d is constant over a box exactly when every texel whose tent meets the box has
+//!   one value.
+//! - **Placement.** Along x the box's marginal is the tent interpolation of the columns'
+//!   weighted sums c_i: linear between column centres, so its cumulative is quadratic there. A
+//!   binary search on the cumulative at the centres (exact integer sums of c and half of the
+//!   centre's own) finds the segment, and the quadratic's root the position. Given x, the
+//!   density along y interpolates the two columns around x linearly, and the same inversion
+//!   places y.
+//! - **Footprints.** ∫_A d over a parallelogram clips it to each cell between four texel
+//!   centres (where d is one bilinear patch) and integrates the patch over the clipped polygon
+//!   from its moments ([`super::polygon`]).
+
+use glam::DVec2;
+
+use super::polygon::{clip, polygon_moments};
+use super::{DensityMap, FIXED_ONE, MAX_INTEGRATED_TEXELS};
+use crate::footprint::Footprint;
+
+/// ∫ T(s) ds from −∞ to t for the tent T(s) = max(0, 1 − |s|).
+pub(super) fn tent_cumulative(t: f64) -> f64 {
+    if t <= -1.0 {
+        0.0
+    } else if t <= 0.0 {
+        0.5 * (t + 1.0) * (t + 1.0)
+    } else if t < 1.0 {
+        1.0 - 0.5 * (1.0 - t) * (1.0 - t)
+    } else {
+        1.0
+    }
+}
+
+/// The texels along one axis of `n` whose tents meet [lo, hi] (within [0, 1]), as groups of
+/// consecutive texels [a, b) (a ≥ −1, b ≤ n + 1: indices outside [0, n) wrap) with the integral
+/// of each texel's tent over the interval in texel units: each partly covered texel alone, the
+/// whole tents as one group of weight 1.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TentSpan {
+    groups: [(i64, i64, f64); 6],
+    len: usize,
+    /// The first and last texel whose tent meets the interval.
+    pub(super) first: i64,
+    pub(super) last: i64,
+}
+
+impl TentSpan {
+    pub(super) fn new(lo: f64, hi: f64, n: usize) -> Self {
+        let (a, b) = (lo * n as f64, hi * n as f64);
+        // Texel i's tent covers (i − ½, i + 3/2) in texel coordinates.
+        let first = (a - 1.5).floor() as i64 + 1;
+        let last = ((b + 0.5).ceil() as i64 - 1).max(first);
+        let whole = ((a + 0.5).ceil() as i64, (b - 1.5).floor() as i64);
+        let weight = |i: i64| {
+            let centre = i as f64 + 0.5;
+            tent_cumulative(b - centre) - tent_cumulative(a - centre)
+        };
+        let mut span = Self {
+            groups: [(0, 0, 0.0); 6],
+            len: 0,
+            first,
+            last,
+        };
+        let mut push = |group: (i64, i64, f64)| {
+            span.groups[span.len] = group;
+            span.len += 1;
+        };
+        if whole.0 <= whole.1 {
+            for i in first..whole.0 {
+                push((i, i + 1, weight(i)));
+            }
+            push((whole.0, whole.1 + 1, 1.0));
+            for i in whole.1 + 1..=last {
+                push((i, i + 1, weight(i)));
+            }
+        } else {
+            // No whole tent: the interval is under two texels wide, and meets at most four.
+            for i in first..=last {
+                push((i, i + 1, weight(i)));
+            }
+        }
+        span
+    }
+
+    pub(super) fn groups(&self) -> &[(i64, i64, f64)] {
+        &self.groups[..self.len]
+    }
+}
+
+/// `range` [a, b) of texel indices (a ≥ −n, b ≤ 2n) as at most three ranges within [0, n).
+fn wrapped(a: i64, b: i64, n: usize) -> impl Iterator<Item = (usize, usize)> {
+    let n = n as i64;
+    [(a, b.min(0)), (a.max(0), b.min(n)), (a.max(n), b)]
+        .into_iter()
+        .filter(|(lo, hi)| lo < hi)
+        .map(move |(lo, hi)| {
+            let shift = lo.div_euclid(n) * n;
+            ((lo - shift) as usize, (hi - shift) as usize)
+        })
+}
+
+impl DensityMap {
+    /// Σ q over texel columns [i0, i1) × rows [j0, j1), indices wrapped into the map.
+    fn wrapped_sum(&self, (i0, i1): (i64, i64), (j0, j1): (i64, i64)) -> u64 {
+        let mut sum = 0;
+        for rows in wrapped(j0, j1, self.height) {
+            for columns in wrapped(i0, i1, self.width) {
+                sum += self.rect_sum(columns, rows);
+            }
+        }
+        sum
+    }
+
+    /// ∫ d over the box [min, min + size]² in fixed-point texel units, bilinear.
+    pub(super) fn bilinear_box_mass(&self, min: DVec2, size: f64) -> f64 {
+        let columns = TentSpan::new(min.x, min.x + size, self.width);
+        let rows = TentSpan::new(min.y, min.y + size, self.height);
+        let mut mass = 0.0;
+        for &(j0, j1, row_weight) in rows.groups() {
+            for &(i0, i1, column_weight) in columns.groups() {
+                mass += self.wrapped_sum((i0, i1), (j0, j1)) as f64 * (column_weight * row_weight);
+            }
+        }
+        mass
+    }
+
+    /// Whether the bilinear d is constant over the box [min, min + size]²: every texel whose
+    /// tent meets it has one value.
+    pub(super) fn bilinear_is_constant_over(&self, min: DVec2, size: f64) -> bool {
+        let columns = TentSpan::new(min.x, min.x + size, self.width);
+        let rows = TentSpan::new(min.y, min.y + size, self.height);
+        let first = self.fixed(
+            columns.first.rem_euclid(self.width as i64) as usize,
+            rows.first.rem_euclid(self.height as i64) as usize,
+        );
+        wrapped(rows.first, rows.last + 1, self.height).all(|(j0, j1)| {
+            wrapped(columns.first, columns.last + 1, self.width).all(|(i0, i1)| {
+                self.texels_constant((i0, i1 - 1), (j0, j1 - 1)) && self.fixed(i0, j0) == first
+            })
+        })
+    }
+
+    /// d at `x` (wrapped into the square), bilinear, in fixed-point units.
+    pub(super) fn bilinear_fixed_at(&self, x: DVec2) -> f64 {
+        let x = x - x.floor();
+        let (s, t) = (
+            x.x * self.width as f64 - 0.5,
+            x.y * self.height as f64 - 0.5,
+        );
+        let (i, j) = (s.floor(), t.floor());
+        let (fs, ft) = (s - i, t - j);
+        let q = |di: i64, dj: i64| {
+            self.fixed(
+                (i as i64 + di).rem_euclid(self.width as i64) as usize,
+                (j as i64 + dj).rem_euclid(self.height as i64) as usize,
+            ) as f64
+        };
+        (1.0 - ft) * ((1.0 - fs) * q(0, 0) + fs * q(1, 0))
+            + ft * ((1.0 - fs) * q(0, 1) + fs * q(1, 1))
+    }
+
+    /// The position in the box [min, min + size]² of the particle with uniform numbers `u`,
+    /// bilinear (see the module docs): x by the box's marginal, then y given x.
+    pub(super) fn bilinear_place(&self, min: DVec2, size: f64, u: [f64; 2]) -> DVec2 {
+        let rows = TentSpan::new(min.y, min.y + size, self.height);
+        // Σ over columns [a, b) of the columns' tent-weighted sums over the box's rows.
+        let columns_sum = |a: i64, b: i64| {
+            rows.groups()
+                .iter()
+                .map(|&(j0, j1, w)| self.wrapped_sum((a, b), (j0, j1)) as f64 * w)
+                .sum::<f64>()
+        };
+        let x = invert_tents(min.x, min.x + size, self.width, &columns_sum, u[0]);
+        // Along y at x: the two columns around x, interpolated.
+        let s = x * self.width as f64 - 0.5;
+        let (k, t) = (s.floor() as i64, s - s.floor());
+        let column_sum = |a: i64, b: i64| {
+            (1.0 - t) * self.wrapped_sum((k, k + 1), (a, b)) as f64
+                + t * self.wrapped_sum((k + 1, k + 2), (a, b)) as f64
+        };
+        let y = invert_tents(min.y, min.y + size, self.height, &column_sum, u[1]);
+        DVec2::new(x, y)
+    }
+
+    /// ∫_A d over the footprint's parallelogram, bilinear, each integer translate counted:
+    /// the parallelogram clipped to every cell between four texel centres its bounding box
+    /// meets, up to [`MAX_INTEGRATED_TEXELS`] of them, else its area times the map's mean.
+    pub(super) fn bilinear_mass_in(&self, footprint: &Footprint) -> f64 {
+        let (min, max) = footprint.bounds();
+        let scale = DVec2::new(self.width as f64, self.height as f64);
+        // Cells [k + ½, k + 3/2) in texel coordinates, k from ⌊x·n − ½⌋.
+        let (lo, hi) = (
+            (min * scale - 0.5).floor(),
+            (max * scale - 0.5).floor() + 1.0,
+        );
+        if !((hi.x - lo.x) * (hi.y - lo.y) <= MAX_INTEGRATED_TEXELS) {
+            return footprint.area() * self.mean();
+        }
+        let corners = footprint.corners().map(|c| c * scale);
+        let mut mass = 0.0;
+        for row in lo.y as i64..hi.y as i64 {
+            let (y0, y1) = (row as f64 + 0.5, row as f64 + 1.5);
+            let strip = clip(&corners, |p| p.y - y0, |p| y1 - p.y);
+            if strip.len() < 3 {
+                continue;
+            }
+            for column in lo.x as i64..hi.x as i64 {
+                let (x0, x1) = (column as f64 + 0.5, column as f64 + 1.5);
+                let piece = clip(&strip, |p| p.x - x0, |p| x1 - p.x);
+                if piece.len() < 3 {
+                    continue;
+                }
+                let q = |di: i64, dj: i64| {
+                    self.fixed(
+                        (column + di).rem_euclid(self.width as i64) as usize,
+                        (row + dj).rem_euclid(self.height as i64) as usize,
+                    ) as f64
+                };
+                let (q00, q10, q01, q11) = (q(0, 0), q(1, 0), q(0, 1), q(1, 1));
+                if q00 == 0.0 && q10 == 0.0 && q01 == 0.0 && q11 == 0.0 {
+                    continue;
+                }
+                // The patch in the cell's own coordinates s = x − x0, t = y − y0:
+                // q00 + (q10 − q00)s + (q01 − q00)t + (q00 − q10 − q01 + q11)st.
+                let shifted: Vec<DVec2> = piece.iter().map(|&p| p - DVec2::new(x0, y0)).collect();
+                let [area, sx, sy, sxy] = polygon_moments(&shifted);
+                mass += q00 * area
+                    + (q10 - q00) * sx
+                    + (q01 - q00) * sy
+                    + (q00 - q10 - q01 + q11) * sxy;
+            }
+        }
+        mass / (FIXED_ONE * scale.x * scale.y)
+    }
+}
+
+/// The position in [lo, hi] (within [0, 1]) where the cumulative of a tent-interpolated
+/// sequence over `n` texels passes the fraction `u` of its integral over [lo, hi]; `sum(a, b)`
+/// is the sequence summed over texels [a, b) (wrapped), each ≥ 0. See the module docs.
+fn invert_tents(lo: f64, hi: f64, n: usize, sum: &dyn Fn(i64, i64) -> f64, u: f64) -> f64 {
+    let (a, b) = (lo * n as f64, hi * n as f64);
+    let span = TentSpan::new(lo, hi, n);
+    let value = |i: i64| sum(i, i + 1);
+    // The low partly covered texels' tents before a: their share left of the interval.
+    let before_a: f64 = (span.first..=span.last)
+        .take_while(|&i| (i as f64 + 0.5) - 1.0 < a)
+        .map(|i| value(i) * tent_cumulative(a - i as f64 - 0.5))
+        .sum();
+    // The mass of [a, centre of texel k], for centres within (a, b).
+    let at_centre = |k: i64| sum(span.first, k) + 0.5 * value(k) - before_a;
+    let total: f64 = span
+        .groups()
+        .iter()
+        .map(|&(i0, i1, w)| sum(i0, i1) * w)
+        .sum();
+    let target = u * total;
+    // Segments between consecutive breakpoints: a, the centres inside (a, b), b.
+    // The texel centres k + ½ strictly inside (a, b).
+    let first_centre = (a - 0.5).floor() as i64 + 1;
+    let last_centre = ((b - 0.5).ceil() as i64 - 1).max(first_centre - 1);
+    let breakpoint = |m: i64| -> (f64, f64) {
+        // Breakpoint m: 0 is a, 1 ..= centres, the last is b; its position and cumulative.
+        let centres = last_centre - first_centre + 1;
+        if m == 0 {
+            (a, 0.0)
+        } else if m > centres {
+            (b, total)
+        } else {
+            let k = first_centre + m - 1;
+            (k as f64 + 0.5, at_centre(k))
+        }
+    };
+    let segments = last_centre - first_centre + 2;
+    // Largest m with cumulative(m) ≤ target (cumulative(0) = 0 ≤ target).
+    let (mut lo_m, mut hi_m) = (0_i64, segments);
+    if !(target < total) {
+        return hi;
+    }
+    while hi_m - lo_m > 1 {
+        let mid = lo_m + (hi_m - lo_m) / 2;
+        if breakpoint(mid).1 <= target {
+            lo_m = mid;
+        } else {
+            hi_m = mid;
+        }
+    }
+    let ((start, below), (end, _)) = (breakpoint(lo_m), breakpoint(lo_m + 1));
+    // Within the segment the density is linear between the centres k and k + 1 around it.
+    let k = (start - 0.5).floor() as i64;
+    let (c0, c1) = (value(k), value(k + 1));
+    let (ts, te) = (start - k as f64 - 0.5, end - k as f64 - 0.5);
+    let slope = c1 - c0;
+    // Solve c0·(t − ts) + slope·(t² − ts²)/2 = target − below for t in [ts, te].
+    let rest = (target - below).max(0.0) + c0 * ts + 0.5 * slope * ts * ts;
+    let root = c0 * c0 + 2.0 * slope * rest;
+    let t = if rest > 0.0 {
+        2.0 * rest / (c0 + root.max(0.0).sqrt())
+    } else {
+        ts
+    };
+    let position = (k as f64 + 0.5 + t.clamp(ts, te)) / n as f64;
+    position.clamp(lo, hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::MapFilter;
+    use crate::tea::{TeaRng, unit_pair};
+
+    /// A `width` × `height` bilinear map of a few repeated values, zeros included (so some
+    /// regions are constant and some vanish).
+    fn patchy(width: usize, height: usize, seed: u32) -> DensityMap {
+        let mut rng = TeaRng::new([seed, 3, 2, 1], 0, 8);
+        let levels = [0.0, 0.25, 1.0, 0.6];
+        let values: Vec<f64> = (0..width * height)
+            .map(|k| {
+                let block = (k % width) / 3 + (k / width) / 2;
+                levels[(block + usize::from(rng.next_bits().is_multiple_of(5))) % 4]
+            })
+            .collect();
+        DensityMap::with_filter(width, height, &values, MapFilter::Bilinear).unwrap()
+    }
+
+    /// ∫ d over [x0, x1] × [y0, y1] by a midpoint rule of n × n points on the bilinear d.
+    fn midpoint_mass(map: &DensityMap, x: [f64; 2], y: [f64; 2], n: usize) -> f64 {
+        let mut sum = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let p = DVec2::new(
+                    x[0] + (x[1] - x[0]) * (i as f64 + 0.5) / n as f64,
+                    y[0] + (y[1] - y[0]) * (j as f64 + 0.5) / n as f64,
+                );
+                sum += map.value_at(p);
+            }
+        }
+        sum * (x[1] - x[0]) * (y[1] - y[0]) / (n * n) as f64
+    }
+
+    const MAPS: [(usize, usize, u32); 5] =
+        [(7, 5, 1), (16, 16, 2), (1, 9, 3), (12, 1, 4), (37, 23, 5)];
+
+    /// d interpolates the texels: at a texel's centre it is the texel's value, it is
+    /// continuous across texel edges and across the square's edges (the map tiles), and
+    /// halfway between two centres it is their mean.
+    #[test]
+    fn d_interpolates_the_texels_and_tiles() {
+        for (w, h, seed) in MAPS {
+            let map = patchy(w, h, seed);
+            for j in 0..h {
+                for i in 0..w {
+                    let centre =
+                        DVec2::new((i as f64 + 0.5) / w as f64, (j as f64 + 0.5) / h as f64);
+                    let texel = map.texel(i, h - 1 - j);
+                    assert!((map.value_at(centre) - texel).abs() < 1e-12);
+                    let right = map.texel((i + 1) % w, h - 1 - j);
+                    let halfway = centre + DVec2::new(0.5 / w as f64, 0.0);
+                    assert!((map.value_at(halfway) - 0.5 * (texel + right)).abs() < 1e-12);
+                }
+            }
+            for t in [0.013, 0.5, 0.77] {
+                for (a, b) in [
+                    (DVec2::new(1e-12, t), DVec2::new(1.0 - 1e-12, t)),
+                    (DVec2::new(t, 1e-12), DVec2::new(t, 1.0 - 1e-12)),
+                ] {
+                    assert!(
+                        (map.value_at(a) - map.value_at(b)).abs() < 1e-9,
+                        "{w}x{h} at {a}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Box masses (the quarter probabilities' ratios and zeros), constancy and the bound over
+    /// a footprint, against the definitions: a fine midpoint rule, and the texels whose tents
+    /// meet the box listed one by one.
+    #[test]
+    fn masses_constancy_and_bounds_follow_the_definitions() {
+        for (w, h, seed) in MAPS {
+            let map = patchy(w, h, seed);
+            for level in 0..6 {
+                let size = 0.5f64.powi(level);
+                let boxes = 1usize << level;
+                for bx in 0..boxes.min(6) {
+                    for by in 0..boxes.min(6) {
+                        let min = DVec2::new(bx as f64, by as f64) * size;
+                        let mass = map.bilinear_box_mass(min, size) / (FIXED_ONE * (w * h) as f64);
+                        let reference =
+                            midpoint_mass(&map, [min.x, min.x + size], [min.y, min.y + size], 160);
+                        assert!(
+                            (mass - reference).abs() < 2e-4 * size * size + 1e-12,
+                            "{w}x{h} box {min} {size}: {mass} against {reference}"
+                        );
+                        // The texels whose tents (centre ± one texel) meet the box.
+                        let meets = |centre: f64, lo: f64, texel: f64| {
+                            (lo..lo + size).contains(&centre)
+                                || (centre - lo).abs().min((centre - lo - size).abs())
+                                    < texel - 1e-12
+                        };
+                        let mut seen = Vec::new();
+                        for j in -1..=h as i64 {
+                            for i in -1..=w as i64 {
+                                let (cx, cy) =
+                                    ((i as f64 + 0.5) / w as f64, (j as f64 + 0.5) / h as f64);
+                                if meets(cx, min.x, 1.0 / w as f64)
+                                    && meets(cy, min.y, 1.0 / h as f64)
+                                {
+                                    let i = i.rem_euclid(w as i64) as usize;
+                                    let j = j.rem_euclid(h as i64) as usize;
+                                    seen.push(map.texel(i, h - 1 - j));
+                                }
+                            }
+                        }
+                        let constant = seen.iter().all(|&v| v == seen[0]);
+                        assert_eq!(
+                            map.is_constant_over(min, size),
+                            constant,
+                            "{w}x{h} {min} {size}"
+                        );
+                        if let Some(p) = map.quarter_probabilities(min, size) {
+                            let half = 0.5 * size;
+                            for (q, &pq) in p.iter().enumerate() {
+                                let c = min + DVec2::new((q & 1) as f64, (q >> 1) as f64) * half;
+                                let quarter = map.bilinear_box_mass(c, half);
+                                assert_eq!(pq == 0.0, quarter == 0.0);
+                                let reference =
+                                    midpoint_mass(&map, [c.x, c.x + half], [c.y, c.y + half], 100);
+                                assert!(
+                                    (pq * mass - reference).abs() < 1e-4 * size * size,
+                                    "{w}x{h} {c}"
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// A placed particle is the inverse of the distribution restricted to the box: the mass
+    /// left of its x is u₀ of the box's, and along y at its x, the mass below it is u₁ of the
+    /// column's (both by midpoint rules on the bilinear d); none lands where d = 0.
+    #[test]
+    fn placement_inverts_the_distribution() {
+        for (w, h, seed) in MAPS {
+            let map = patchy(w, h, seed);
+            let mut rng = TeaRng::new([seed, 7, 7, 7], 0, 8);
+            for k in 0..150 {
+                let size = 0.5f64.powi(k % 6);
+                let [a, b] = unit_pair(rng.next_bits());
+                let min = (DVec2::new(a, b) * (1.0 - size) / size).floor() * size;
+                let (x, y) = ([min.x, min.x + size], [min.y, min.y + size]);
+                let total = midpoint_mass(&map, x, y, 300);
+                if total < 1e-9 * size * size {
+                    continue;
+                }
+                let u = unit_pair(rng.next_bits());
+                let p = map.place(min, size, u);
+                assert!(
+                    map.value_at(p) > 0.0,
+                    "{w}x{h}: a particle at {p} where d = 0"
+                );
+                let left = midpoint_mass(&map, [x[0], p.x], y, 300);
+                assert!(
+                    (left / total - u[0]).abs() < 2e-3,
+                    "{w}x{h} box {min} {size}: x {p}"
+                );
+                let n = 4000;
+                let along = |to: f64| -> f64 {
+                    (0..n)
+                        .map(|i| {
+                            map.value_at(DVec2::new(
+                                p.x,
+                                y[0] + (to - y[0]) * (i as f64 + 0.5) / n as f64,
+                            ))
+                        })
+                        .sum::<f64>()
+                        * (to - y[0])
+                        / n as f64
+                };
+                let column = along(y[1]);
+                if column > 1e-9 {
+                    assert!(
+                        (along(p.y) / column - u[1]).abs() < 2e-3,
+                        "{w}x{h} box {min} {size}: y {p}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// ∫_A d over parallelograms (across texel edges and tiles) against a midpoint rule over
+    /// the parallelogram's own parameters.
+    #[test]
+    fn mass_in_a_footprint_is_the_integral_over_the_parallelogram() {
+        let map = patchy(11, 6, 3);
+        let mut rng = TeaRng::new([8, 1, 8, 1], 0, 8);
+        for _ in 0..40 {
+            let [a, b] = unit_pair(rng.next_bits());
+            let [c, d] = unit_pair(rng.next_bits());
+            let uv = DVec2::new(a, b);
+            let dx = DVec2::new(0.02 + 0.5 * c, 0.1 * d - 0.05);
+            let dy = DVec2::new(0.2 * a - 0.1, 0.03 + 0.4 * d);
+            let footprint = Footprint::new(uv, dx, dy).unwrap();
+            let n = 600;
+            let mut sum = 0.0;
+            for s in 0..n {
+                for t in 0..n {
+                    let (s, t) = (
+                        (s as f64 + 0.5) / n as f64 - 0.5,
+                        (t as f64 + 0.5) / n as f64 - 0.5,
+                    );
+                    sum += map.value_at(uv + s * dx + t * dy);
+                }
+            }
+            let reference = sum / (n * n) as f64 * footprint.area();
+            let exact = map.mass_in(&footprint);
+            assert!(
+                (exact - reference).abs() < 1e-4 * footprint.area(),
+                "{uv} {dx} {dy}: {exact} against {reference}"
+            );
+            let bound = map.max_over(&footprint);
+            for s in 0..20 {
+                for t in 0..20 {
+                    let x = uv + (s as f64 / 19.0 - 0.5) * dx + (t as f64 / 19.0 - 0.5) * dy;
+                    assert!(map.value_at(x) <= bound + 1e-12);
+                }
+            }
+        }
+    }
+}
