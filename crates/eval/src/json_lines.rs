@@ -274,7 +274,7 @@ mod tests {
     }
 
     /// A material's maps count in the cache's memory: three materials with a 512² roughness
-    /// map at 12 levels (84 MB of level maps each) leave two cached, not 64 (each was counted
+    /// map at 20 levels (about 110 MB each, 67 MB of it level maps) leave two cached, not 64 (each was counted
     /// as 2 MB, and the cache grew by the maps' size with every line).
     #[test]
     fn the_material_cache_counts_the_maps() {
@@ -290,13 +290,18 @@ mod tests {
         let alpha_map = format!("[{}]", rows.join(","));
         let line = |seed: usize| {
             format!(
-                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "seed": {seed}, "alpha_map": {alpha_map}, "roughness_levels": 12}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "seed": {seed}, "alpha_map": {alpha_map}, "roughness_levels": 20}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
             )
         };
         let mut requests = JsonLines::new();
         requests.answer(&line(0)).unwrap();
         let one = requests.cached_bytes();
-        let level_maps = 12 * glint_brdf::DensityMap::bytes_for(side, side);
+        let level_maps = 20 * glint_brdf::DensityMap::bytes_for(side, side);
+        // Two fit and three do not (the maps' size sets the test's scale).
+        assert!(
+            3 * one > MATERIAL_CACHE_BYTES && 2 * one <= MATERIAL_CACHE_BYTES,
+            "{one} bytes counted"
+        );
         assert!(one > level_maps, "{one} bytes counted");
         for seed in 1..3 {
             requests.answer(&line(seed)).unwrap();
