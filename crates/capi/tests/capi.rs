@@ -514,11 +514,11 @@ fn invalid_parameters_are_named() {
         (
             GlintMaterialParams {
                 alpha_map: bad_alpha.as_ptr(),
-                alpha_map_width: 1 << 13,
-                alpha_map_height: 1 << 12,
+                alpha_map_width: 1 << 15,
+                alpha_map_height: 1 << 14,
                 ..defaults
             },
-            "alpha_map is 8192 x 4096 texels",
+            "alpha_map is 32768 x 16384 texels",
         ),
         (
             GlintMaterialParams {
