@@ -667,6 +667,7 @@ unsafe fn set_maps(
         )?
         .map(spec),
         roughness_levels: Some(f64::from(p.roughness_levels)),
+        map_filter: None,
     };
     // The messages name the map and texel as eval's do, without eval's "material." prefix.
     maps.apply(parameters)

@@ -1120,6 +1120,7 @@ fn answers_are_glint_evals_bit_for_bit() {
                 alpha_map: Some(spec_map(&alphas)),
                 tint_map: Some(spec_map(&tints)),
                 roughness_levels: Some(4.0),
+                map_filter: None,
             },
             ..MaterialSpec::new("beckmann", 0.1, 1e8, 1.0)
         },

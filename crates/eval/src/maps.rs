@@ -1,11 +1,14 @@
 //! A material's maps as `docs/eval.md` specifies them (density, roughness and tint over the
-//! texture square, row 0 at the top), shared by `cargo xtask eval`, the C API and the Python
-//! package so that each refuses the same texels with the same message.
+//! texture square, row 0 at the top, and how the density and roughness are reconstructed
+//! between texels), shared by `cargo xtask eval`, the C API and the Python package so that
+//! each refuses the same texels with the same message.
 
 use std::sync::Arc;
 
-use glint_brdf::{DensityMap, GlintParameters, RoughnessMap, TintMap};
+use glint_brdf::{DensityMap, GlintParameters, MapFilter, RoughnessMap, TintMap};
 use serde_json::{Map, Value};
+
+use crate::material::optional_name;
 
 /// A map's texels: `width` × `height`, row by row from the top of the texture, `channels`
 /// numbers per texel (1, or 3 for a tint) in `values`.
@@ -30,11 +33,26 @@ pub struct MapsSpec {
     pub tint_map: Option<MapSpec>,
     /// K, the most roughness levels of an `alpha_map` (1 to 64; 8 when absent).
     pub roughness_levels: Option<f64>,
+    /// How `density_map` and `alpha_map` are reconstructed between texels: one of
+    /// [`MapFilter::NAMES`], `"nearest"` when absent. The tint stays nearest.
+    pub map_filter: Option<String>,
 }
 
 /// The JSON fields of [`MapsSpec`].
-pub(crate) const MAP_FIELDS: [&str; 4] =
-    ["density_map", "alpha_map", "tint_map", "roughness_levels"];
+pub(crate) const MAP_FIELDS: [&str; 5] = [
+    "density_map",
+    "alpha_map",
+    "tint_map",
+    "roughness_levels",
+    "map_filter",
+];
+
+/// The filters' names as an error lists them: `"nearest" or "bilinear"`.
+fn filter_names() -> String {
+    MapFilter::NAMES
+        .map(|name| format!("\"{name}\""))
+        .join(" or ")
+}
 
 impl MapsSpec {
     /// Validates the maps and sets them on `parameters`.
@@ -42,14 +60,16 @@ impl MapsSpec {
     /// # Errors
     /// A message naming the map and, for a bad value, its texel (column, row from the top).
     pub fn apply(&self, parameters: &mut GlintParameters) -> Result<(), String> {
+        let filter = self.filter()?;
         if let Some(map) = &self.density_map {
-            let built = DensityMap::new(map.width, map.height, &map.values)
+            let built = DensityMap::with_filter(map.width, map.height, &map.values, filter)
                 .map_err(|e| format!("material.density_map: {e}"))?;
             parameters.density_map = Some(Arc::new(built));
         }
         if let Some(map) = &self.alpha_map {
             let built = RoughnessMap::new(map.width, map.height, &map.values)
-                .map_err(|e| format!("material.{e}"))?;
+                .map_err(|e| format!("material.{e}"))?
+                .with_filter(filter);
             parameters.alpha_map = Some(Arc::new(built));
         }
         if let Some(map) = &self.tint_map {
@@ -76,8 +96,24 @@ impl MapsSpec {
         Ok(())
     }
 
+    /// The filter `map_filter` names (nearest when absent).
+    ///
+    /// # Errors
+    /// A message naming `material.map_filter` and the filters, for an unknown name.
+    pub fn filter(&self) -> Result<MapFilter, String> {
+        match self.map_filter.as_deref() {
+            None => Ok(MapFilter::Nearest),
+            Some(name) => MapFilter::from_name(name).ok_or_else(|| {
+                format!(
+                    "material.map_filter \"{name}\" is unknown: use {}",
+                    filter_names()
+                )
+            }),
+        }
+    }
+
     /// The maps of a JSON material object: each an array of rows, top row first, of numbers
-    /// (`density_map`, `alpha_map`) or of [r, g, b] triples (`tint_map`).
+    /// (`density_map`, `alpha_map`) or of [r, g, b] triples (`tint_map`), and `map_filter`.
     ///
     /// # Errors
     /// A message naming the map whose shape or values are not numbers.
@@ -93,6 +129,7 @@ impl MapsSpec {
             alpha_map: map_from_json(m, "alpha_map", 1)?,
             tint_map: map_from_json(m, "tint_map", 3)?,
             roughness_levels: levels,
+            map_filter: optional_name(m, "map_filter", &filter_names())?,
         })
     }
 }
@@ -234,6 +271,16 @@ mod tests {
                 json!(0),
                 "material.roughness_levels = 0.0 must be a whole number in [1, 64]",
             ),
+            (
+                "map_filter",
+                json!("cubic"),
+                "material.map_filter \"cubic\" is unknown: use \"nearest\" or \"bilinear\"",
+            ),
+            (
+                "map_filter",
+                json!(1),
+                "material.map_filter 1 is unknown: use \"nearest\" or \"bilinear\"",
+            ),
         ] {
             let error = error_of(with(field, value));
             assert!(error.starts_with(message), "{field}: {error}");
@@ -241,5 +288,63 @@ mod tests {
         let mut both = with("density_map", json!([[1, 1]]));
         both["alpha_map"] = json!([[0.1], [0.2]]);
         assert!(error_of(both).contains("they must have the same size"));
+    }
+
+    /// `map_filter` reaches the density and roughness maps (not the tint, which stays nearest);
+    /// "nearest" is the material without the field, bit for bit, and "bilinear" answers
+    /// otherwise where the map has an edge.
+    #[test]
+    fn map_filter_applies_to_the_density_and_roughness_maps() {
+        use glint_brdf::{DVec2, DVec3, MapFilter, QueryScratch};
+
+        let mapped = |filter: Option<&str>| {
+            let mut material = with("density_map", json!([[1, 0], [0.5, 1]]));
+            material["alpha_map"] = json!([[0.1, 0.2], [0.3, 0.1]]);
+            material["tint_map"] = json!([[[1, 0.5, 0], [0, 0, 1]], [[1, 1, 1], [0.2, 0.4, 0.6]]]);
+            if let Some(filter) = filter {
+                material["map_filter"] = json!(filter);
+            }
+            MaterialSpec::from_json(&material).unwrap().build().unwrap()
+        };
+        let (absent, nearest, bilinear) = (
+            mapped(None),
+            mapped(Some("nearest")),
+            mapped(Some("bilinear")),
+        );
+        for (material, filter) in [
+            (&absent, MapFilter::Nearest),
+            (&nearest, MapFilter::Nearest),
+            (&bilinear, MapFilter::Bilinear),
+        ] {
+            let parameters = material.brdf().parameters();
+            assert_eq!(parameters.density_map.as_ref().unwrap().filter(), filter);
+            assert_eq!(parameters.alpha_map.as_ref().unwrap().filter(), filter);
+        }
+        let (wi, wo) = (
+            DVec3::new(0.1, 0.0, 1.0).normalize(),
+            DVec3::new(-0.1, 0.05, 1.0).normalize(),
+        );
+        // Halfway between the centres of texels (0, 1) and (1, 1), where the filters differ.
+        let uv = DVec2::new(0.5, 0.25);
+        let smooth =
+            |m: &crate::EvalMaterial| m.brdf().smooth_at(wi, wo, uv).to_array().map(f64::to_bits);
+        assert_eq!(smooth(&absent), smooth(&nearest));
+        assert_ne!(smooth(&absent), smooth(&bilinear));
+        let mut scratch = QueryScratch::new();
+        let mut eval = |m: &crate::EvalMaterial| {
+            let e = m
+                .eval(
+                    &mut scratch,
+                    wi.to_array(),
+                    wo.to_array(),
+                    uv.to_array(),
+                    [0.2, 0.0],
+                    [0.0, 0.2],
+                )
+                .unwrap();
+            [e.count, e.expected_count].map(f64::to_bits)
+        };
+        assert_eq!(eval(&absent), eval(&nearest));
+        assert_ne!(eval(&absent), eval(&bilinear));
     }
 }

@@ -72,16 +72,18 @@ pub struct MaterialSpec {
     /// Skip queries whose expected count is provably below this; defaults to
     /// [`DEFAULT_NEGLIGIBLE_COUNT`] (10⁻¹², the tracer's τ); 0 traverses every query.
     pub negligible_count: Option<f64>,
-    /// Density, roughness and tint maps over the texture square; none by default.
+    /// Density, roughness and tint maps over the texture square and their filter; none by
+    /// default.
     pub maps: MapsSpec,
 }
 
 /// The fields a JSON material may hold.
-const KNOWN_FIELDS: [&str; 20] = [
+const KNOWN_FIELDS: [&str; 21] = [
     MAP_FIELDS[0],
     MAP_FIELDS[1],
     MAP_FIELDS[2],
     MAP_FIELDS[3],
+    MAP_FIELDS[4],
     "distribution",
     "alpha",
     "alpha_y",
@@ -350,7 +352,7 @@ fn seed_from_json(value: Option<&Value>) -> Result<Option<u64>, String> {
 }
 
 /// An optional string field, `use_` naming its values for the error a non-string gets.
-fn optional_name(
+pub(crate) fn optional_name(
     m: &Map<String, Value>,
     field: &str,
     use_: &str,
