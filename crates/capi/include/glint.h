@@ -117,6 +117,59 @@ typedef uint32_t GlintPdfQuadrature;
 #endif // __cplusplus
 
 /**
+ * How dense partly covered nodes are answered (`GlintMaterialParams::dense`).
+ */
+enum GlintDense
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * Nodes at the query's scale that hold many particles answer from a rescaled sample of
+   * 32 of them: the exact counts' mean and correlations at a cost bounded whatever N.
+   */
+  GLINT_DENSE_SAMPLED = 0,
+  /**
+   * Every particle resolved (exact counts; the cost grows with N).
+   */
+  GLINT_DENSE_EXACT = 1,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum GlintDense GlintDense;
+#else
+typedef uint32_t GlintDense;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
+ * How the density and roughness maps are reconstructed between their texels
+ * (`GlintMaterialParams::map_filter`); the tint map is nearest under either.
+ */
+enum GlintMapFilter
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * Each texel constant over its square.
+   */
+  GLINT_MAP_FILTER_NEAREST = 0,
+  /**
+   * Bilinear between the texels' centres, wrapping as the map tiles: a mask's edge ramps
+   * over one texel (counts stay exact for the interpolated map).
+   */
+  GLINT_MAP_FILTER_BILINEAR = 1,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum GlintMapFilter GlintMapFilter;
+#else
+typedef uint32_t GlintMapFilter;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * A glint material (opaque): its particle set, sampler and smooth limit. Immutable once
  * built: share one between any number of threads.
  */
@@ -153,6 +206,7 @@ typedef struct GlintScratch GlintScratch;
  * | `roughness_levels` | 8 | 1 to 64 |
  * | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
  * | `dense_node_scale` | 1 | (0, 16]: the largest node sampled, in widths of the query |
+ * | `map_filter` | `GLINT_MAP_FILTER_NEAREST` | a `GlintMapFilter` (density and roughness maps) |
  *
  * A map has width × height ≤ 2^28 texels, row 0 at the top of the texture; it is copied, so
  * the caller's array may be freed once `glint_material_new` returns. A bad texel is an error
@@ -279,6 +333,11 @@ typedef struct GlintMaterialParams {
    * The largest node `GLINT_DENSE_SAMPLED` answers from its sample, in widths of the query.
    */
   double dense_node_scale;
+  /**
+   * How `density_map` and `alpha_map` are reconstructed between texels: a
+   * `GlintMapFilter` (the tint map is nearest under either).
+   */
+  uint32_t map_filter;
 } GlintMaterialParams;
 
 /**

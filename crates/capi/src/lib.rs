@@ -61,8 +61,8 @@ use std::sync::atomic::AtomicBool;
 
 use glint_brdf::{
     Bxdf, BxdfSample, DVec2, DVec3, DenseCounts, DensityMap, DiscreteBrdf, DistributionKind,
-    Footprint, Fresnel, GlintBxdf, GlintParameters, Microfacet, MultinomialMode, PdfQuadrature,
-    QueryScratch, TreeError,
+    Footprint, Fresnel, GlintBxdf, GlintParameters, MapFilter, Microfacet, MultinomialMode,
+    PdfQuadrature, QueryScratch, TreeError,
 };
 use glint_eval::{MapSpec, MapsSpec};
 
@@ -71,9 +71,9 @@ use crate::boundary::{
     write_slice,
 };
 pub use crate::types::{
-    GlintDense, GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
-    GlintMaterialParams, GlintMultinomial, GlintPdfQuadrature, GlintSample, GlintScratch,
-    GlintStatus,
+    GlintDense, GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMapFilter,
+    GlintMaterial, GlintMaterialParams, GlintMultinomial, GlintPdfQuadrature, GlintSample,
+    GlintScratch, GlintStatus,
 };
 
 /// Fills `*params` with the defaults of glint-brdf's `GlintParameters::new` around Beckmann
@@ -603,6 +603,7 @@ impl Default for GlintMaterialParams {
             roughness_levels: 8,
             dense: GlintDense::GLINT_DENSE_SAMPLED as u32,
             dense_node_scale: 1.0,
+            map_filter: GlintMapFilter::GLINT_MAP_FILTER_NEAREST as u32,
         }
     }
 }
@@ -636,6 +637,18 @@ unsafe fn set_maps(
         let slice = unsafe { std::slice::from_raw_parts(values, texels * channels) };
         Ok(Some((width as usize, height as usize, slice)))
     };
+    const NEAREST: u32 = GlintMapFilter::GLINT_MAP_FILTER_NEAREST as u32;
+    const BILINEAR: u32 = GlintMapFilter::GLINT_MAP_FILTER_BILINEAR as u32;
+    let filter = match p.map_filter {
+        NEAREST => MapFilter::Nearest,
+        BILINEAR => MapFilter::Bilinear,
+        other => {
+            return Err(Failure::parameter(format!(
+                "map_filter = {other} is invalid: use GLINT_MAP_FILTER_NEAREST or \
+                 GLINT_MAP_FILTER_BILINEAR"
+            )));
+        }
+    };
     let spec = |(width, height, values): (usize, usize, &[f64])| MapSpec {
         width,
         height,
@@ -667,7 +680,7 @@ unsafe fn set_maps(
         )?
         .map(spec),
         roughness_levels: Some(f64::from(p.roughness_levels)),
-        map_filter: None,
+        map_filter: Some(filter.name().to_owned()),
     };
     // The messages name the map and texel as eval's do, without eval's "material." prefix.
     maps.apply(parameters)

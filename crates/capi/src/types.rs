@@ -78,6 +78,19 @@ pub enum GlintDense {
     GLINT_DENSE_EXACT = 1,
 }
 
+/// How the density and roughness maps are reconstructed between their texels
+/// (`GlintMaterialParams::map_filter`); the tint map is nearest under either.
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[allow(non_camel_case_types)]
+pub enum GlintMapFilter {
+    /// Each texel constant over its square.
+    GLINT_MAP_FILTER_NEAREST = 0,
+    /// Bilinear between the texels' centres, wrapping as the map tiles: a mask's edge ramps
+    /// over one texel (counts stay exact for the interpolated map).
+    GLINT_MAP_FILTER_BILINEAR = 1,
+}
+
 /// How the sampler's pdf integrates over the cone of radius γ.
 #[repr(u32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -115,6 +128,7 @@ pub enum GlintPdfQuadrature {
 /// | `roughness_levels` | 8 | 1 to 64 |
 /// | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
 /// | `dense_node_scale` | 1 | (0, 16]: the largest node sampled, in widths of the query |
+/// | `map_filter` | `GLINT_MAP_FILTER_NEAREST` | a `GlintMapFilter` (density and roughness maps) |
 ///
 /// A map has width × height ≤ 2^28 texels, row 0 at the top of the texture; it is copied, so
 /// the caller's array may be freed once `glint_material_new` returns. A bad texel is an error
@@ -186,6 +200,9 @@ pub struct GlintMaterialParams {
     pub dense: u32,
     /// The largest node `GLINT_DENSE_SAMPLED` answers from its sample, in widths of the query.
     pub dense_node_scale: f64,
+    /// How `density_map` and `alpha_map` are reconstructed between texels: a
+    /// `GlintMapFilter` (the tint map is nearest under either).
+    pub map_filter: u32,
 }
 
 /// A pixel's texture-space footprint: the parallelogram

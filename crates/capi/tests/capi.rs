@@ -10,9 +10,9 @@ use std::ffi::CStr;
 use std::ptr;
 
 use glint::{
-    GlintDense, GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMaterial,
-    GlintMaterialParams, GlintMultinomial, GlintSample, GlintScratch, GlintStatus, glint_eval,
-    glint_eval_batch, glint_eval_smooth, glint_eval_smooth_at, glint_expected_count,
+    GlintDense, GlintDistribution, GlintEvaluation, GlintFootprint, GlintFresnel, GlintMapFilter,
+    GlintMaterial, GlintMaterialParams, GlintMultinomial, GlintSample, GlintScratch, GlintStatus,
+    glint_eval, glint_eval_batch, glint_eval_smooth, glint_eval_smooth_at, glint_expected_count,
     glint_last_error, glint_material_free, glint_material_new, glint_material_params_default,
     glint_pdf, glint_pdf_at, glint_sample, glint_scratch_free, glint_scratch_new, glint_version,
 };
@@ -446,6 +446,10 @@ fn defaults_are_glint_parameters_new_with_evals_negligible_count() {
         (p.dense, p.dense_node_scale),
         (GlintDense::GLINT_DENSE_SAMPLED as u32, 1.0)
     );
+    assert_eq!(
+        p.map_filter,
+        GlintMapFilter::GLINT_MAP_FILTER_NEAREST as u32
+    );
     assert_eq!(p.fresnel, GlintFresnel::GLINT_FRESNEL_NONE as u32);
     assert_eq!(
         p.multinomial,
@@ -475,6 +479,13 @@ fn invalid_parameters_are_named() {
                 ..defaults
             },
             "dense_node_scale",
+        ),
+        (
+            GlintMaterialParams {
+                map_filter: 2,
+                ..defaults
+            },
+            "map_filter = 2 is invalid: use GLINT_MAP_FILTER_NEAREST or GLINT_MAP_FILTER_BILINEAR",
         ),
         (
             GlintMaterialParams {
@@ -1125,8 +1136,23 @@ fn answers_are_glint_evals_bit_for_bit() {
             ..MaterialSpec::new("beckmann", 0.1, 1e8, 1.0)
         },
     );
+    // The same maps reconstructed bilinearly.
+    let bilinear = (
+        GlintMaterialParams {
+            map_filter: GlintMapFilter::GLINT_MAP_FILTER_BILINEAR as u32,
+            ..mapped.0
+        },
+        MaterialSpec {
+            maps: MapsSpec {
+                map_filter: Some("bilinear".to_owned()),
+                ..mapped.1.maps.clone()
+            },
+            ..mapped.1.clone()
+        },
+    );
     let materials = [
         mapped,
+        bilinear,
         (
             default_params(),
             MaterialSpec::new("beckmann", 0.1, 1e6, 1.0),

@@ -126,6 +126,31 @@ int main(void) {
     }
     printf("batch of %d footprints along u: %g particles found\n", ROWS, found);
 
+    /* Maps: a density mask of 2 x 1 texels, flakes on the left half of the texture only.
+     * Nearest (the default) keeps each texel constant; GLINT_MAP_FILTER_BILINEAR interpolates
+     * between the texels' centres (u = 0.25 and 0.75 here), so the density at u = 0.375 is 1
+     * and 0.75, and the smooth limit there scales with it. */
+    const double mask[2] = {1.0, 0.0};
+    GlintMaterialParams masked = params;
+    masked.density_map = mask;
+    masked.density_map_width = 2;
+    masked.density_map_height = 1;
+    const double at[2] = {0.375, 0.5};
+    double smooth_at[2][3];
+    const GlintMapFilter filters[2] = {GLINT_MAP_FILTER_NEAREST, GLINT_MAP_FILTER_BILINEAR};
+    for (int i = 0; i < 2; i++) {
+        masked.map_filter = filters[i];
+        GlintMaterial *mapped = NULL;
+        check(glint_material_new(&masked, &mapped), "glint_material_new (a density mask)");
+        check(glint_eval_smooth_at(mapped, wi, wo, at, smooth_at[i]), "glint_eval_smooth_at");
+        check(glint_material_free(mapped), "glint_material_free");
+    }
+    printf("density mask at u = 0.375: smooth f %.6g nearest, %.6g bilinear\n", smooth_at[0][0],
+           smooth_at[1][0]);
+    expect(smooth_at[0][0] > 0.0 &&
+               fabs(smooth_at[1][0] - 0.75 * smooth_at[0][0]) <= 1e-12 * smooth_at[0][0],
+           "the bilinear density at u = 0.375 is 0.75 of the nearest one");
+
     /* An error: gamma must be in (0, 60] degrees. */
     GlintMaterialParams wide = params;
     wide.gamma_degrees = 90.0;
