@@ -32,7 +32,7 @@
 use std::sync::Mutex;
 
 use glint_sphere::SphericalConic;
-use glint_tree::{CountTree, DirectionalLawExcess, LEAF_CELL_ARC};
+use glint_tree::{CountTree, DirectionalLawExcess, LEAF_CELL_ARC, TurnSymmetry};
 
 use crate::distribution::{DistributionKind, Microfacet};
 
@@ -75,13 +75,15 @@ fn law_excess(tree: &CountTree, distribution: Microfacet) -> DirectionalLawExces
     }
     // Computed without the lock: two threads may both compute a new law, to the same values.
     let bound = |near, far| distribution.particle_density_bound(near, far);
-    // An isotropic p is unchanged, bit for bit, by a quarter turn about n: D's slope term
-    // m_x²/α_x² + m_y²/α_y² only exchanges its two terms, and the rest reads m_z.
-    let excess = if alpha_x == alpha_y {
-        tree.directional_law_excess_quarter_symmetric(&bound)
+    // p reads m_x and m_y only through D's slope term m_x²/α_x² + m_y²/α_y² (the rest reads
+    // m_z), which a half turn about n leaves unchanged bit for bit, and a quarter turn too
+    // where α_x = α_y (it exchanges the two terms).
+    let symmetry = if alpha_x == alpha_y {
+        TurnSymmetry::QuarterTurn
     } else {
-        tree.directional_law_excess(&bound)
+        TurnSymmetry::HalfTurn
     };
+    let excess = tree.directional_law_excess_with(&bound, symmetry);
     let mut memo = lock();
     if remembered(&memo).is_none() {
         if memo.len() == REMEMBERED_LAWS {

@@ -58,5 +58,5 @@ pub use sampling::MultinomialMode;
 pub use tree::{
     CountTree, CountTreeConfig, DENSE_MIN_PARTICLES, DenseCounts, DirectionalLawExcess,
     LEAF_CELL_ARC, LEAF_PARTICLES, MAX_CACHED_LEVELS, MAX_PARTICLES, ManyTiles, QueryResult,
-    QueryScratch, VIRTUAL_PARTICLES, expected_conic_solid_angle,
+    QueryScratch, TurnSymmetry, VIRTUAL_PARTICLES, expected_conic_solid_angle,
 };

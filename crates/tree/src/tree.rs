@@ -32,8 +32,8 @@ mod scratch;
 mod spine;
 
 pub use dense::{DENSE_MIN_PARTICLES, DenseCounts, VIRTUAL_PARTICLES};
-pub use law::DirectionalLawExcess;
 use law::LeafShare;
+pub use law::{DirectionalLawExcess, TurnSymmetry};
 use particles::{DescentStep, Node};
 pub use particles::{LEAF_CELL_ARC, LEAF_PARTICLES};
 pub use query::QueryResult;

@@ -17,6 +17,21 @@ use super::{CountTree, QueryScratch};
 use crate::footprint::Footprint;
 use crate::ndf::{DirectionalCell, DirectionalSplit, NormalDensity, normalized_split};
 
+/// The turns about n that leave a density unchanged bit for bit, which
+/// [`CountTree::directional_law_excess_with`] may use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TurnSymmetry {
+    /// None assumed: every octant walked.
+    None,
+    /// p(−m_x, −m_y, m_z) = p(m) as computed: a density that reads m_x and m_y only through
+    /// their squares, as Beckmann's and GGX's (anisotropic or not). Two octants walked.
+    HalfTurn,
+    /// p(−m_y, m_x, m_z) = p(m) as computed (so also the half turn): an isotropic density
+    /// whose formula adds its x and y terms alike, as Beckmann's and GGX's with α_x = α_y.
+    /// One octant walked.
+    QuarterTurn,
+}
+
 /// How far the tree's directional law exceeds a bound on the density p it approximates
 /// ([`CountTree::directional_law_excess`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,7 +42,7 @@ pub struct DirectionalLawExcess {
     /// Σ P(L) over the final cells whose bound B_L is 0 (p underflows there while the split
     /// law, falling back to solid angles, still gives them mass).
     pub unbounded_mass: f64,
-    /// The final cells enumerated.
+    /// The final cells with positive probability.
     pub cells: usize,
 }
 
@@ -54,47 +69,82 @@ impl CountTree {
         &self,
         density_bound: &dyn Fn(f64, f64) -> f64,
     ) -> DirectionalLawExcess {
-        let mut walk = LawWalk::new(self.density.as_ref(), density_bound);
-        self.law_walk_with_entry(&DirectionalCell::HEMISPHERE, 1.0, &mut walk);
-        walk.excess(1)
+        self.directional_law_excess_with(density_bound, TurnSymmetry::None)
     }
 
-    /// [`CountTree::directional_law_excess`], bit for bit, for a density that a quarter turn
-    /// about n leaves unchanged as computed: p(−m_y, m_x, m_z) = p(m) to the bit, as for an
-    /// isotropic distribution whose formula is symmetric in its x and y terms. Octant k + 1 is
-    /// octant k turned by a quarter (its vertices' coordinates exchanged and negated), and
-    /// every quantity the walk derives from directions (sums, dot and cross products, norms,
-    /// chords, the density, the bound from the cap's cosines) is the same, bit for bit, for a
-    /// turned triangle: negation and exchange commute with rounding, and the exchanged terms
-    /// of a dot product are added in the other order, which is exact (up to the sign of a
-    /// zero, which no result here depends on). So the four octants' walks are one walk: this
-    /// walks the first octant a stack visits (the last), counts its cells four times and adds
-    /// its M terms four times in their order. Where the octants' probabilities or table
-    /// entries differ (the density is not symmetric after all), it walks all four.
+    /// [`CountTree::directional_law_excess`], bit for bit, for a density that the turns of
+    /// `symmetry` about n leave unchanged as computed (p(−m_x, −m_y, m_z) = p(m) to the bit for
+    /// a half turn, p(−m_y, m_x, m_z) = p(m) for a quarter turn), walking only the octants
+    /// the turns do not map onto each other: one for a quarter turn, two for a half turn.
+    ///
+    /// Octant k + 1 is octant k turned by a quarter (the vertices' x and y exchanged, one of
+    /// them negated), octant k + 2 by a half (both negated). Every quantity the walk derives
+    /// from directions (sums, dot and cross products, norms, chords, the density, the bound
+    /// from the cap's cosines) is then the same, bit for bit, in the turned octant: negation
+    /// commutes with rounding, and a dot product adds the same two products in the other
+    /// order, which is exact (a zero's sign may differ, and no result here depends on it). So
+    /// the walk of octant k is that of its representative, and this adds the representatives'
+    /// M terms in the order a walk of all four octants meets them (octants 3, 2, 1, 0), their
+    /// cells as often as they stand for octants. Where the octants' split probabilities or
+    /// table entries differ (the density is not symmetric after all) it walks all four.
     #[must_use]
-    pub fn directional_law_excess_quarter_symmetric(
+    pub fn directional_law_excess_with(
         &self,
         density_bound: &dyn Fn(f64, f64) -> f64,
+        symmetry: TurnSymmetry,
     ) -> DirectionalLawExcess {
         let hemisphere = self.directional_split(&DirectionalCell::HEMISPHERE);
-        let first = &hemisphere.children[0];
-        let symmetric = (0..4).all(|j| {
-            hemisphere.probabilities[j].to_bits() == hemisphere.probabilities[0].to_bits()
-                && self.quadrature.has_entry(&hemisphere.children[j])
-                    == self.quadrature.has_entry(first)
-        });
-        if !symmetric {
-            return self.directional_law_excess(density_bound);
-        }
+        let distinct = self.distinct_octants(&hemisphere, symmetry);
         let mut walk = LawWalk::new(self.density.as_ref(), density_bound);
-        self.law_walk_child(&hemisphere, 3, 1.0, &mut walk);
-        walk.excess(4)
+        // Per walked octant (3 first): its cells and the end of its M terms in `walk`.
+        let mut walked = [(0, 0); 4];
+        for octant in (4 - distinct..4).rev() {
+            let cells = walk.cells;
+            self.law_walk_child(&hemisphere, octant, 1.0, &mut walk);
+            walked[octant] = (walk.cells - cells, walk.unbounded.len());
+        }
+        let mut excess = DirectionalLawExcess {
+            ratio: walk.ratio,
+            unbounded_mass: 0.0,
+            cells: 0,
+        };
+        for j in (0..4).rev() {
+            let octant = representative(distinct, j);
+            let start = if octant == 3 { 0 } else { walked[octant + 1].1 };
+            let (cells, end) = walked[octant];
+            excess.cells += cells;
+            for &probability in &walk.unbounded[start..end] {
+                excess.unbounded_mass += probability;
+            }
+        }
+        excess
     }
 
-    /// The law's walk below a cell with an Alg. 2 entry (or the hemisphere), never a final
-    /// cell: its split is the material's ([`Self::directional_split`], remembered for these
-    /// cells), children visited last first, depth first (the order of a stack), so that M sums
-    /// in the same order as a plain enumeration.
+    /// How many octants [`Self::directional_law_excess_with`] walks for `symmetry`: 4, or 2
+    /// or 1 where the octants it maps onto each other have the same split probabilities and
+    /// table entries.
+    fn distinct_octants(&self, hemisphere: &DirectionalSplit, symmetry: TurnSymmetry) -> usize {
+        let distinct = match symmetry {
+            TurnSymmetry::None => 4,
+            TurnSymmetry::HalfTurn => 2,
+            TurnSymmetry::QuarterTurn => 1,
+        };
+        let same = |j: usize, k: usize| {
+            hemisphere.probabilities[j].to_bits() == hemisphere.probabilities[k].to_bits()
+                && self.quadrature.has_entry(&hemisphere.children[j])
+                    == self.quadrature.has_entry(&hemisphere.children[k])
+        };
+        if (0..4).all(|j| same(j, representative(distinct, j))) {
+            distinct
+        } else {
+            4
+        }
+    }
+
+    /// The law's walk below a cell with an Alg. 2 entry, never a final cell: its split is the
+    /// material's ([`Self::directional_split`], remembered for these cells), children visited
+    /// last first, depth first (the order of a stack), so that M sums in the same order as a
+    /// plain enumeration.
     fn law_walk_with_entry(&self, cell: &DirectionalCell, probability: f64, walk: &mut LawWalk) {
         let split = self.directional_split(cell);
         for j in (0..4).rev() {
@@ -273,21 +323,6 @@ impl<'a> LawWalk<'a> {
         }
     }
 
-    /// W, M and the cell count of the walk repeated `copies` times (M summed in order, as a
-    /// single sum over the repeated walk would).
-    fn excess(&self, copies: usize) -> DirectionalLawExcess {
-        let mut unbounded_mass = 0.0;
-        for _ in 0..copies {
-            for &probability in &self.unbounded {
-                unbounded_mass += probability;
-            }
-        }
-        DirectionalLawExcess {
-            ratio: self.ratio,
-            unbounded_mass,
-            cells: copies * self.cells,
-        }
-    }
     /// Visits a cell without an Alg. 2 entry reached with `probability` > 0: `solid_angle` and
     /// `centroid` are the triangle's own ([`SphericalTriangle::solid_angle`],
     /// [`SphericalTriangle::centroid`]).
@@ -326,6 +361,7 @@ impl<'a> LawWalk<'a> {
             }
         });
         let probabilities = normalized_split(integrals, &solid_angles);
+        let finals = final_children(&children);
         let total: f64 = integrals.iter().sum();
         let ratio_bound = if total > 0.0 && total.is_finite() {
             probability / total * (1.0 + 2.0 * BOUND_SLACK)
@@ -338,7 +374,7 @@ impl<'a> LawWalk<'a> {
                 continue;
             }
             let child = &children[j];
-            if child.longest_chord() > LEAF_CELL_CHORD {
+            if !finals[j] {
                 self.split(child, child_probability);
             } else if ratio_bound < self.ratio && densities[j] >= SAFE_DENSITY {
                 self.cells += 1;
@@ -393,6 +429,36 @@ const BOUND_SLACK: f64 = 1e-9;
 /// The least density at a final cell's centroid for which `LawWalk::split` may skip the cell's
 /// bound: far above underflow, where a bound's own rounding could make it 0.
 const SAFE_DENSITY: f64 = 1e-200;
+
+/// The octant whose walk stands for octant `j`'s when the octants fall into `distinct`
+/// classes of turned copies (1, 2 or 4): among 3, …, 4 − `distinct`, the first a walk of all
+/// four octants (3, 2, 1, 0) meets.
+fn representative(distinct: usize, j: usize) -> usize {
+    3 - (3 - j) % distinct
+}
+
+/// The largest x with √x ≤ [`LEAF_CELL_CHORD`] as rounded: a triangle's longest chord is at
+/// most [`LEAF_CELL_CHORD`] exactly when its longest squared chord is at most this.
+const LEAF_CELL_CHORD_SQUARED: f64 = 9.999_916_666_944_444e-5;
+
+/// Which of a subdivision's four children ([`SphericalTriangle::subdivide`]) are final by their
+/// chords (`longest_chord() <= LEAF_CELL_CHORD`, bit for bit): from the nine distinct edges,
+/// without square roots (an edge's squared length is the same either way along it).
+#[inline]
+fn final_children(children: &[SphericalTriangle; 4]) -> [bool; 4] {
+    let [a, ab, ca] = children[0].vertices();
+    let [_, b, bc] = children[1].vertices();
+    let c = children[2].vertices()[2];
+    let squared = |p: DVec3, q: DVec3| (q - p).length_squared();
+    let (ab_ca, bc_ab, ca_bc) = (squared(ab, ca), squared(bc, ab), squared(ca, bc));
+    let longest = [
+        squared(a, ab).max(ab_ca).max(squared(ca, a)),
+        squared(ab, b).max(squared(b, bc)).max(bc_ab),
+        ca_bc.max(squared(bc, c)).max(squared(c, ca)),
+        squared(ab, bc).max(squared(bc, ca)).max(squared(ca, ab)),
+    ];
+    longest.map(|l| l <= LEAF_CELL_CHORD_SQUARED)
+}
 
 /// p(c) where c.z > 0, else 0: the factor of the one-point rule ([`one_point_rule_at`]).
 #[inline]
@@ -530,6 +596,53 @@ mod tests {
         (Arc::new(density), Box::new(bound))
     }
 
+    /// A density claimed symmetric that is not (tilted towards +x) is walked in all four
+    /// octants, to the plain enumeration's W, M and cells.
+    #[test]
+    fn an_asymmetric_density_is_walked_whole() {
+        let (density, bound) = law(false, 0.2, 0.2);
+        let tilted = move |m: DVec3| density(m) * (1.0 + 0.5 * m.x);
+        let tilted_bound = move |near: f64, far: f64| 1.5 * bound(near, far);
+        let tree = CountTree::new(CountTreeConfig::default(), Arc::new(tilted)).expect("valid");
+        let plain = reference_law_excess(&tree, &tilted_bound);
+        let hemisphere = tree.directional_split(&DirectionalCell::HEMISPHERE);
+        for symmetry in [TurnSymmetry::HalfTurn, TurnSymmetry::QuarterTurn] {
+            assert_eq!(tree.distinct_octants(&hemisphere, symmetry), 4);
+            let excess = tree.directional_law_excess_with(&tilted_bound, symmetry);
+            assert_eq!(excess.ratio.to_bits(), plain.ratio.to_bits());
+            assert_eq!(
+                excess.unbounded_mass.to_bits(),
+                plain.unbounded_mass.to_bits()
+            );
+            assert_eq!(excess.cells, plain.cells);
+        }
+    }
+
+    /// [`LEAF_CELL_CHORD_SQUARED`] is the threshold it claims, and `final_children` agrees with
+    /// `longest_chord` on the children of cells around the final size.
+    #[test]
+    fn final_children_are_those_of_the_chord_test() {
+        let above = f64::from_bits(LEAF_CELL_CHORD_SQUARED.to_bits() + 1);
+        assert!(LEAF_CELL_CHORD_SQUARED.sqrt() <= LEAF_CELL_CHORD);
+        assert!(above.sqrt() > LEAF_CELL_CHORD);
+        let (mut finals, mut others) = (0, 0);
+        let mut level = SphericalTriangle::upper_hemisphere_octants().to_vec();
+        for depth in 1..=10 {
+            for triangle in &level {
+                let children = triangle.subdivide();
+                let by_chord = children.map(|t| t.longest_chord() <= LEAF_CELL_CHORD);
+                assert_eq!(final_children(&children), by_chord, "depth {depth}");
+                finals += by_chord.iter().filter(|&&f| f).count();
+                others += by_chord.iter().filter(|&&f| !f).count();
+            }
+            // About a thousand cells of the next level, evenly spread.
+            let next: Vec<_> = level.iter().flat_map(|t| t.subdivide()).collect();
+            let stride = (next.len() / 1000).max(1);
+            level = next.into_iter().step_by(stride).collect();
+        }
+        assert!(finals > 100 && others > 100, "{finals} final, {others} not");
+    }
+
     /// `law`'s density and bound made to vanish beyond 60° from n, and on fine rings (10⁻⁷ in
     /// cos θ, unchanged by turns about n) from 56.6° to 60° (so that the four children of some splits all have p(c) = 0, the
     /// split falls back to solid angles, and cells beyond 60° get mass: M > 0), the bound 0
@@ -567,7 +680,7 @@ mod tests {
             max_depth: 6,
             ..default
         };
-        let (mut with_unbounded_mass, mut symmetric_laws) = (0, 0);
+        let (mut with_unbounded_mass, mut symmetric_walks) = (0, 0);
         for (ggx, alpha_x, alpha_y) in [
             (false, 0.01, 0.01),
             (false, 0.1, 0.1),
@@ -601,9 +714,25 @@ mod tests {
                 );
                 assert_eq!(fast.cells, plain.cells, "{law}");
                 assert!(fast.ratio > 0.5 && plain.cells > 1000, "{law}: {plain:?}");
+                // These densities read m_x, m_y only through their squares (half turns), and
+                // alike where α_x = α_y (quarter turns).
+                let mut symmetries = vec![TurnSymmetry::HalfTurn];
                 if alpha_x == alpha_y {
-                    // An isotropic p is unchanged by quarter turns, bit for bit.
-                    let symmetric = tree.directional_law_excess_quarter_symmetric(&bound);
+                    symmetries.push(TurnSymmetry::QuarterTurn);
+                }
+                for symmetry in symmetries {
+                    let hemisphere = tree.directional_split(&DirectionalCell::HEMISPHERE);
+                    let walked = tree.distinct_octants(&hemisphere, symmetry);
+                    assert_eq!(
+                        walked,
+                        if symmetry == TurnSymmetry::HalfTurn {
+                            2
+                        } else {
+                            1
+                        }
+                    );
+                    let symmetric = tree.directional_law_excess_with(&bound, symmetry);
+                    let law = format!("{law} {symmetry:?}");
                     assert_eq!(symmetric.ratio.to_bits(), plain.ratio.to_bits(), "{law}");
                     assert_eq!(
                         symmetric.unbounded_mass.to_bits(),
@@ -611,13 +740,13 @@ mod tests {
                         "{law}"
                     );
                     assert_eq!(symmetric.cells, plain.cells, "{law}");
-                    symmetric_laws += 1;
+                    symmetric_walks += 1;
                 }
                 with_unbounded_mass += usize::from(plain.unbounded_mass > 0.0);
             }
         }
         // M > 0 for the vanishing density of the laws with mass near 60°.
         assert!(with_unbounded_mass >= 4, "{with_unbounded_mass}");
-        assert_eq!(symmetric_laws, 18);
+        assert_eq!(symmetric_walks, 24 + 18);
     }
 }
