@@ -60,6 +60,9 @@ pub(super) struct GlintSection {
     alpha_texture: Option<String>,
     tint_texture: Option<String>,
     roughness_levels: Option<usize>,
+    /// How `density_texture` and `alpha_texture` are reconstructed between texels:
+    /// "nearest" (the default) or "bilinear".
+    map_filter: Option<String>,
 }
 
 impl Builder<'_> {
@@ -75,8 +78,9 @@ impl Builder<'_> {
                 "`alpha_texture` replaces `alpha`: give one of them",
             );
         }
+        let map_filter = self.map_filter(field, g.map_filter.as_deref())?;
         let alpha_map = match &g.alpha_texture {
-            Some(file) => Some(self.alpha_map(field, file)?),
+            Some(file) => Some(self.alpha_map(field, file, map_filter)?),
             None => None,
         };
         let alpha = match (g.alpha, &alpha_map) {
@@ -101,7 +105,7 @@ impl Builder<'_> {
         let mut parameters = GlintParameters::new(distribution);
         parameters.alpha_map = alpha_map;
         if let Some(file) = &g.density_texture {
-            parameters.density_map = Some(self.density_map(field, file)?);
+            parameters.density_map = Some(self.density_map(field, file, map_filter)?);
         }
         if let Some(file) = &g.tint_texture {
             parameters.tint_map = Some(self.tint_map(field, file)?);

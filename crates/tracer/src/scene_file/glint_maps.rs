@@ -1,12 +1,13 @@
 //! A glint material's maps in the file (`density_texture`, `alpha_texture`, `tint_texture`):
 //! images read into glint-brdf's [`DensityMap`], [`RoughnessMap`] and [`TintMap`], every
 //! texel checked, errors naming the field, the file and the texel. Density and roughness are
-//! data: one channel, read linearly (a PNG is not sRGB-decoded); the tint is a colour, read as
-//! other colour textures are (a PNG sRGB-decoded).
+//! data: one channel, read linearly (a PNG is not sRGB-decoded), reconstructed between texels
+//! by the material's `map_filter`; the tint is a colour, read as other colour textures are (a
+//! PNG sRGB-decoded), and stays nearest.
 
 use std::sync::Arc;
 
-use glint_brdf::{BrdfError, DensityMap, DensityMapError, RoughnessMap, TintMap};
+use glint_brdf::{BrdfError, DensityMap, DensityMapError, MapFilter, RoughnessMap, TintMap};
 
 use super::builder::{Builder, Checked, shown};
 use crate::error::TracerError;
@@ -55,11 +56,34 @@ impl Builder<'_> {
         })
     }
 
-    /// The density map d(x) ∈ [0, 1] of `{field}.density_texture`.
-    pub(super) fn density_map(&self, field: &str, file: &str) -> Checked<Arc<DensityMap>> {
+    /// The `map_filter` of glint material `field`: nearest when absent.
+    pub(super) fn map_filter(&self, field: &str, name: Option<&str>) -> Checked<MapFilter> {
+        let Some(name) = name else {
+            return Ok(MapFilter::Nearest);
+        };
+        match MapFilter::from_name(name) {
+            Some(filter) => Ok(filter),
+            None => self.fail(
+                format!("{field}.map_filter"),
+                format!(
+                    "unknown filter \"{}\": use {}",
+                    echo(name),
+                    MapFilter::NAMES.map(|n| format!("\"{n}\"")).join(" or ")
+                ),
+            ),
+        }
+    }
+
+    /// The density map d(x) ∈ [0, 1] of `{field}.density_texture`, reconstructed by `filter`.
+    pub(super) fn density_map(
+        &self,
+        field: &str,
+        file: &str,
+        filter: MapFilter,
+    ) -> Checked<Arc<DensityMap>> {
         let field = format!("{field}.density_texture");
         let t = self.data_texels(&field, file)?;
-        DensityMap::new(t.width, t.height, &t.values)
+        DensityMap::with_filter(t.width, t.height, &t.values, filter)
             .map(Arc::new)
             .map_err(|e| match e {
                 DensityMapError::Empty => self.scene_error(
@@ -73,12 +97,18 @@ impl Builder<'_> {
             })
     }
 
-    /// The roughness map α(x) ∈ [10⁻⁴, 1] of `{field}.alpha_texture`.
-    pub(super) fn alpha_map(&self, field: &str, file: &str) -> Checked<Arc<RoughnessMap>> {
+    /// The roughness map α(x) ∈ [10⁻⁴, 1] of `{field}.alpha_texture`, its levels'
+    /// densities reconstructed by `filter`.
+    pub(super) fn alpha_map(
+        &self,
+        field: &str,
+        file: &str,
+        filter: MapFilter,
+    ) -> Checked<Arc<RoughnessMap>> {
         let field = format!("{field}.alpha_texture");
         let t = self.data_texels(&field, file)?;
         RoughnessMap::new(t.width, t.height, &t.values)
-            .map(Arc::new)
+            .map(|map| Arc::new(map.with_filter(filter)))
             .map_err(|e| self.map_error(&field, file, &e))
     }
 
@@ -348,6 +378,11 @@ power = 10
                 field("roughness_levels"),
                 &["[1, 64]"],
             ),
+            (
+                "alpha = 0.1\ndensity_texture = \"ok.png\"\nmap_filter = \"cubic\"",
+                field("map_filter"),
+                &["\"cubic\"", "\"nearest\" or \"bilinear\""],
+            ),
         ];
         for (extra, expected, words) in cases {
             let (f, problem) = error_of(&dir, extra);
@@ -359,6 +394,161 @@ power = 10
                 );
             }
         }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// `map_filter` reaches the density and roughness textures: "nearest" is the material
+    /// without the field, bit for bit; "bilinear" evaluates otherwise on maps with edges (the
+    /// smooth limit between texel centres, f̂ over footprints across the edges) and exactly
+    /// as "nearest" on a density map of ones and a roughness map of one value.
+    #[test]
+    fn map_filter_bilinear_differs_on_edges_and_not_on_constant_maps() {
+        use glint_brdf::{Bxdf, Footprint, MapFilter, QueryScratch};
+
+        let dir = folder("filter");
+        write_data(&dir, "edges_d.png", &grey(2, &[1.0, 0.0, 0.0, 1.0]));
+        write_data(
+            &dir,
+            "edges_a.png",
+            &grey(2, &[13.0 / 255.0, 77.0 / 255.0, 77.0 / 255.0, 13.0 / 255.0]),
+        );
+        write_data(&dir, "ones_d.png", &grey(2, &[1.0; 4]));
+        write_data(&dir, "ones_a.png", &grey(2, &[26.0 / 255.0; 4]));
+        let material = |maps: &str, filter: &str| {
+            let scene = load(
+                &dir,
+                &format!(
+                    "density_texture = \"{maps}_d.png\"\nalpha_texture = \"{maps}_a.png\"\n{filter}"
+                ),
+            )
+            .unwrap();
+            glint(&scene).brdf.clone()
+        };
+        // Directions near the mirror configuration and footprints from a tenth of a texel to
+        // a few texels, at positions all over the square.
+        let queries: Vec<(DVec3, DVec3, DVec2, f64)> = (0..400)
+            .map(|k| {
+                let t = f64::from(k);
+                let wi = DVec3::new(0.3 * (0.7 * t).sin(), 0.3 * (1.3 * t).cos(), 1.0).normalize();
+                let wo = (DVec3::new(-wi.x, -wi.y, wi.z)
+                    + 0.05 * DVec3::new((2.1 * t).sin(), (3.7 * t).cos(), 0.0))
+                .normalize();
+                let uv = DVec2::new((0.618_034 * t).fract(), (0.414_214 * t).fract());
+                (wi, wo, uv, 0.05 * 60f64.powf((0.271_828 * t).fract()))
+            })
+            .collect();
+        let answers = |brdf: &glint_brdf::DiscreteBrdf| {
+            let mut scratch = QueryScratch::new();
+            queries
+                .iter()
+                .map(|&(wi, wo, uv, side)| {
+                    let footprint =
+                        Footprint::new(uv, DVec2::new(side, 0.0), DVec2::new(0.0, 0.6 * side))
+                            .unwrap();
+                    let f = brdf.at(&footprint, &mut scratch).eval(wi, wo);
+                    [f.x, brdf.smooth_at(wi, wo, uv).x].map(f64::to_bits)
+                })
+                .collect::<Vec<_>>()
+        };
+        for maps in ["edges", "ones"] {
+            let (absent, nearest, bilinear) = (
+                material(maps, ""),
+                material(maps, "map_filter = \"nearest\""),
+                material(maps, "map_filter = \"bilinear\""),
+            );
+            for (brdf, filter) in [
+                (&absent, MapFilter::Nearest),
+                (&nearest, MapFilter::Nearest),
+                (&bilinear, MapFilter::Bilinear),
+            ] {
+                let parameters = brdf.parameters();
+                assert_eq!(parameters.density_map.as_ref().unwrap().filter(), filter);
+                assert_eq!(parameters.alpha_map.as_ref().unwrap().filter(), filter);
+            }
+            let reference = answers(&absent);
+            assert!(
+                reference.iter().filter(|a| a[0] != 0).count() > 40,
+                "{maps}: lit"
+            );
+            assert_eq!(answers(&nearest), reference, "{maps}: nearest");
+            let differ = answers(&bilinear)
+                .iter()
+                .zip(&reference)
+                .filter(|(b, n)| b[0] != n[0])
+                .count();
+            if maps == "edges" {
+                assert!(differ > 40, "bilinear f̂ differs in only {differ} queries");
+                // Halfway between two texel centres across the density edge: d = 1/2.
+                let (wi, wo) = (DVec3::Z, DVec3::new(0.05, 0.0, 1.0).normalize());
+                let at = DVec2::new(0.5, 0.75);
+                let (b, n) = (bilinear.smooth_at(wi, wo, at), absent.smooth_at(wi, wo, at));
+                assert!(b.x > 0.0 && b != n, "{b} {n}");
+            } else {
+                assert_eq!(differ, 0, "a map of ones answers alike under both filters");
+                assert_eq!(answers(&bilinear), reference);
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Rendered, the same: a floor under a light whose glitter has a density edge renders
+    /// otherwise under "bilinear" than under "nearest"; with a density map of ones, pixel for
+    /// pixel alike.
+    #[test]
+    fn map_filter_bilinear_renders_otherwise_on_edges_and_alike_on_ones() {
+        let dir = folder("filter-render");
+        write_data(
+            &dir,
+            "edges.png",
+            &grey(4, &[1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0]),
+        );
+        write_data(&dir, "ones.png", &grey(4, &[1.0; 8]));
+        let render = |map: &str, filter: &str| {
+            let text = format!(
+                r#"
+[render]
+resolution = [16, 16]
+spp = 2
+integrator = "direct"
+[camera]
+position = [0, 2.2, 0]
+look_at = [0, 0, 0]
+up = [0, 0, -1]
+fov = 45
+[materials.glitter]
+type = "glint"
+particles = 1e7
+gamma_degrees = 4
+alpha = 0.2
+density_texture = "{map}.png"
+{filter}
+[[shapes]]
+type = "rectangle"
+center = [0, 0, 0]
+u = [2, 0, 0]
+v = [0, 0, -2]
+material = "glitter"
+[[lights]]
+type = "sphere"
+center = [0.3, 0.9, 1.0]
+radius = 0.25
+power = 60
+"#
+            );
+            let scene = parse_scene(&text, &dir.join("scene.toml")).unwrap();
+            crate::render(&scene, &scene.settings, 0.0, &|_, _| {})
+                .unwrap()
+                .image
+                .pixels
+        };
+        let bilinear = "map_filter = \"bilinear\"";
+        let nearest = render("edges", "");
+        assert!(
+            nearest.iter().filter(|p| p.x > 0.0).count() > 50,
+            "lit pixels"
+        );
+        assert_ne!(nearest, render("edges", bilinear));
+        assert_eq!(render("ones", ""), render("ones", bilinear));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
