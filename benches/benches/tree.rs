@@ -7,7 +7,7 @@ use std::sync::Arc;
 use glint_benches::{TABLE1, production_density_values, table1_mapped_workload, table1_workload};
 use glint_tree::sampling::{MultinomialMode, multinomial4, multinomial4_equal_by_bits};
 use glint_tree::tea::{DEFAULT_ROUNDS, TeaRng, encrypt, encrypt_x4};
-use glint_tree::{DensityMap, MultinomialMode as Mode, QueryScratch};
+use glint_tree::{DensityMap, MapFilter, MultinomialMode as Mode, QueryScratch};
 use std::hint::black_box;
 
 const POOL: usize = 1024;
@@ -33,18 +33,30 @@ fn tree(c: &mut Criterion) {
     group.bench_function("density_map_build_1024", |b| {
         b.iter(|| DensityMap::new(side, side, black_box(&values)).expect("a valid map"))
     });
-    for side in [1024, 8192] {
-        let map = DensityMap::new(side, side, &production_density_values(side)).expect("valid");
+    for (side, filter) in [
+        (1024, MapFilter::Nearest),
+        (1024, MapFilter::Bilinear),
+        (8192, MapFilter::Nearest),
+    ] {
+        let values = production_density_values(side);
+        let map = DensityMap::with_filter(side, side, &values, filter).expect("valid");
         let (tree, queries) = table1_mapped_workload(&TABLE1[0], POOL, 1, Arc::new(map));
         let mut scratch = QueryScratch::new();
         let mut i = 0;
-        group.bench_function(format!("query_{}_map_{side}", TABLE1[0].name), |b| {
-            b.iter(|| {
-                i = (i + 1) % POOL;
-                let (footprint, conic) = &queries[i];
-                tree.query(black_box(footprint), conic, &mut scratch)
-            })
-        });
+        let suffix = match filter {
+            MapFilter::Nearest => String::new(),
+            MapFilter::Bilinear => "_bilinear".to_owned(),
+        };
+        group.bench_function(
+            format!("query_{}_map_{side}{suffix}", TABLE1[0].name),
+            |b| {
+                b.iter(|| {
+                    i = (i + 1) % POOL;
+                    let (footprint, conic) = &queries[i];
+                    tree.query(black_box(footprint), conic, &mut scratch)
+                })
+            },
+        );
     }
     let key = [1, 2, 3, 4];
     let mut counter = 0u32;

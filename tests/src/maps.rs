@@ -7,7 +7,9 @@ use std::sync::Arc;
 
 use glam::DVec2;
 use glint_sphere::SphericalConic;
-use glint_tree::{CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, QueryScratch};
+use glint_tree::{
+    CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, MapFilter, QueryScratch,
+};
 
 use crate::SplitMix64;
 use crate::counts::{beckmann_density, conic_integral_by_sampling};
@@ -126,6 +128,53 @@ pub fn square_mass(values: &[f64], (w, h): (usize, usize), centre: DVec2, side: 
     mass
 }
 
+/// ∫d over an axis-aligned square footprint, wrapped across tiles, of the map reconstructed
+/// from the values as given by `filter`: [`square_mass`], or for the bilinear map each texel's
+/// value times the integrals of its tents (centred on the texel, one texel wide on each side,
+/// in every neighbouring tile) over the square's sides, each tent integrated as its two linear
+/// halves.
+#[must_use]
+pub fn filtered_square_mass(
+    values: &[f64],
+    (w, h): (usize, usize),
+    filter: MapFilter,
+    centre: DVec2,
+    side: f64,
+) -> f64 {
+    if filter == MapFilter::Nearest {
+        return square_mass(values, (w, h), centre, side);
+    }
+    // ∫ over [lo, hi] of the tent of half-width `half` centred at c.
+    let tent = |c: f64, half: f64, lo: f64, hi: f64| {
+        let linear = |a: f64, b: f64, value: &dyn Fn(f64) -> f64| {
+            let (a, b) = (a.max(lo), b.min(hi));
+            if b > a {
+                (b - a) * 0.5 * (value(a) + value(b))
+            } else {
+                0.0
+            }
+        };
+        linear(c - half, c, &|x| (x - c + half) / half)
+            + linear(c, c + half, &|x| (c + half - x) / half)
+    };
+    let (x0, y0) = (centre.x - 0.5 * side, centre.y - 0.5 * side);
+    let mut mass = 0.0;
+    for tile_x in -2..=2 {
+        for tile_y in -2..=2 {
+            for j in 0..h {
+                for i in 0..w {
+                    let cx = (i as f64 + 0.5) / w as f64 + f64::from(tile_x);
+                    let cy = (j as f64 + 0.5) / h as f64 + f64::from(tile_y);
+                    let a = tent(cx, 1.0 / w as f64, x0, x0 + side);
+                    let b = tent(cy, 1.0 / h as f64, y0, y0 + side);
+                    mass += values[(h - 1 - j) * w + i] * a * b;
+                }
+            }
+        }
+    }
+    mass
+}
+
 /// Sums of counts against their means over one half of the footprints.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CountSums {
@@ -162,7 +211,7 @@ impl CountSums {
 
 /// Counts of square footprints of side 1.3 texels at random positions (straddling texel edges
 /// and tiles) on `sets` particle sets (seeds) of `per_set` footprints each, under the map
-/// `(w, h, values)` with `particles` particles, ε = `epsilon` and a cone of `gamma_deg`
+/// `(w, h, values)` reconstructed by `filter`, with `particles` particles, ε = `epsilon` and a cone of `gamma_deg`
 /// degrees: the sums over footprints of mean density ≥ ½ and < ½, [dense, light].
 ///
 /// # Panics
@@ -170,6 +219,7 @@ impl CountSums {
 #[must_use]
 pub fn mapped_count_sums(
     (w, h, values): (usize, usize, &[f64]),
+    filter: MapFilter,
     particles: u64,
     gamma_deg: f64,
     epsilon: f64,
@@ -179,7 +229,7 @@ pub fn mapped_count_sums(
     let density = beckmann_density(0.2, 0.2);
     let (integral, integral_error) =
         conic_integral_by_sampling(density.as_ref(), &conic, 400_000, &mut SplitMix64::new(4));
-    let map = Arc::new(DensityMap::new(w, h, values).expect("a valid map"));
+    let map = Arc::new(DensityMap::with_filter(w, h, values, filter).expect("a valid map"));
     let side = 1.3 / w.max(h) as f64;
     let mut rng = SplitMix64::new(17);
     let mut scratch = QueryScratch::new();
@@ -199,7 +249,7 @@ pub fn mapped_count_sums(
             let footprint = Footprint::new(centre, DVec2::new(side, 0.0), DVec2::new(0.0, side))
                 .expect("a finite footprint");
             let count = tree.query(&footprint, &conic, &mut scratch).count;
-            let mass = square_mass(values, (w, h), centre, side);
+            let mass = filtered_square_mass(values, (w, h), filter, centre, side);
             let q = mass * integral;
             let mean = particles as f64 * q;
             let sum = &mut sums[usize::from(mass < 0.5 * side * side)];

@@ -8,8 +8,12 @@ use std::sync::Arc;
 use glam::DVec2;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{beckmann_density, queries_in_threads, whole_and_halves};
-use glint_tests::maps::{count_cases, disc, mapped_count_sums, square_mass, test_conic, test_maps};
-use glint_tree::{CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, QueryScratch};
+use glint_tests::maps::{
+    count_cases, disc, filtered_square_mass, mapped_count_sums, square_mass, test_conic, test_maps,
+};
+use glint_tree::{
+    CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, MapFilter, QueryScratch,
+};
 
 fn tree(particles: u64, epsilon: f64, seed: u64, map: Option<DensityMap>) -> CountTree {
     let config = CountTreeConfig {
@@ -36,7 +40,14 @@ fn counts_follow_the_map_binomially() {
     let cases = count_cases();
     for (name, w, h, values, particles, gamma) in cases {
         for epsilon in [0.0, 0.1] {
-            let sums = mapped_count_sums((w, h, &values), particles, gamma, epsilon, (20, 100));
+            let sums = mapped_count_sums(
+                (w, h, &values),
+                MapFilter::Nearest,
+                particles,
+                gamma,
+                epsilon,
+                (20, 100),
+            );
             for (half, sums) in ["dense", "light"].iter().zip(sums) {
                 if sums.means == 0.0 {
                     continue;
@@ -56,6 +67,69 @@ fn counts_follow_the_map_binomially() {
                     );
                 }
             }
+        }
+    }
+}
+
+/// Under the bilinear reconstruction of the same maps, counts are binomial with mean
+/// N·∫_A d·∫p for the reconstructed d (∫_A d from the texels' tents, independently of the
+/// map's tables), and footprints where the reconstruction is 0 (all four centres around them
+/// 0, inside the disc's zeros) hold nothing.
+#[test]
+fn counts_follow_the_bilinear_map_binomially() {
+    for (name, w, h, values, particles, gamma) in count_cases() {
+        let sums = mapped_count_sums(
+            (w, h, &values),
+            MapFilter::Bilinear,
+            particles,
+            gamma,
+            0.0,
+            (20, 100),
+        );
+        for (half, sums) in ["dense", "light"].iter().zip(sums) {
+            if sums.means == 0.0 {
+                continue;
+            }
+            assert!(
+                sums.z().abs() < 5.0,
+                "{name}, bilinear, {half} footprints: Σ counts {} against Σ N·∫d·∫p {} ± {}",
+                sums.counts,
+                sums.means,
+                sums.error
+            );
+            assert!(
+                (sums.dispersion() - 1.0).abs() < 0.25,
+                "{name}, bilinear, {half}: Σ(count − mean)² / Σ mean(1 − q) = {}",
+                sums.dispersion()
+            );
+            assert_eq!(
+                sums.masked_count, 0.0,
+                "{name}, bilinear: particles where d = 0"
+            );
+        }
+    }
+}
+
+/// The independent bilinear mass of a footprint agrees with the map's own (tables, tents and
+/// clipping) on squares across texel edges and tiles: the reference of the count check above
+/// is right.
+#[test]
+fn the_bilinear_reference_mass_is_the_maps_own() {
+    let mut rng = SplitMix64::new(3);
+    for (name, w, h, values) in test_maps() {
+        let map = DensityMap::with_filter(w, h, &values, MapFilter::Bilinear).unwrap();
+        for _ in 0..50 {
+            let centre = DVec2::new(rng.uniform(), rng.uniform());
+            let side = (0.2 + 2.0 * rng.uniform()) / w.max(h) as f64;
+            let footprint =
+                Footprint::new(centre, DVec2::new(side, 0.0), DVec2::new(0.0, side)).unwrap();
+            let reference =
+                filtered_square_mass(&values, (w, h), MapFilter::Bilinear, centre, side);
+            let own = map.mass_in(&footprint);
+            assert!(
+                (own - reference).abs() < 1e-9 * side * side + 1e-15,
+                "{name} at {centre}, side {side}: {own} against {reference}"
+            );
         }
     }
 }

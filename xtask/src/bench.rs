@@ -30,7 +30,7 @@ const SPHERE_BENCHMARKS: [(&str, &str); 7] = [
 ];
 
 /// The tree's primitive benchmarks.
-const TREE_BENCHMARKS: [(&str, &str); 17] = [
+const TREE_BENCHMARKS: [(&str, &str); 18] = [
     ("tea_scalar_8_rounds", "TEA, one 64-bit block, 8 cycles"),
     (
         "tea_x4_8_rounds",
@@ -85,6 +85,10 @@ const TREE_BENCHMARKS: [(&str, &str); 17] = [
     (
         "query_spheres_1e6_6deg_a0.1_map_1024",
         "sphere lights' query under a 1024² production-like density map",
+    ),
+    (
+        "query_spheres_1e6_6deg_a0.1_map_1024_bilinear",
+        "the same under the 1024² map reconstructed bilinearly",
     ),
     (
         "query_spheres_1e6_6deg_a0.1_map_8192",

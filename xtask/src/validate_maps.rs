@@ -9,7 +9,7 @@ use std::time::Instant;
 use glam::{DVec2, DVec3};
 use glint_brdf::{
     Bxdf, DensityMap, DiscreteBrdf, DistributionKind, Footprint, Fresnel, GlintParameters,
-    Microfacet, MicrofacetBrdf, NormalSampling, QueryScratch, RoughnessMap,
+    MapFilter, Microfacet, MicrofacetBrdf, NormalSampling, QueryScratch, RoughnessMap,
 };
 use glint_tests::SplitMix64;
 use glint_tests::geometry::direction;
@@ -17,29 +17,40 @@ use glint_tests::maps::{count_cases, mapped_count_sums};
 
 use crate::validate::Check;
 
-/// Counts on checkerboard, gradient, disc and sparse maps, ε = 0 and 0.1: Σ counts against
-/// Σ N·∫_A d·∫p over the dense and light halves of the footprints, the dispersion at ε = 0,
-/// and no particle in footprints where d = 0.
+/// Counts on checkerboard, gradient, disc and sparse maps, nearest and bilinear, ε = 0 and
+/// 0.1: Σ counts against Σ N·∫_A d·∫p over the dense and light halves of the footprints, the
+/// dispersion at ε = 0, and no particle in footprints where d = 0.
 pub(crate) fn counts(quick: bool, report: &mut String) -> anyhow::Result<Check> {
     let (sets, per_set) = if quick { (20, 100) } else { (100, 200) };
     writeln!(
         report,
         "\n## Maps: counts under density maps\n\n{sets} particle sets × {per_set} square \
          footprints of 1.3 texels at random positions per row; expected = Σ N·∫_A d·∫p with ∫_A d \
-         texel by texel from the map's values and ∫p by Monte Carlo; z over the footprints of \
+         texel by texel from the map's values (bilinear: each texel's tents) and ∫p by Monte Carlo; z over the footprints of \
          mean density ≥ ½ (dense) and < ½ (light); dispersion Σ(count − mean)²/Σ mean(1 − q) \
          at ε = 0; masked: particles found in footprints where d = 0. Pass: |z| < 4.5, \
          |dispersion − 1| < {}, masked 0.\n\n\
-         | map | N | γ | ε | z dense | z light | dispersion dense | dispersion light | masked footprints | masked count | ok |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|",
+         | map | filter | N | γ | ε | z dense | z light | dispersion dense | dispersion light | masked footprints | masked count | ok |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|",
         if quick { 0.25 } else { 0.1 }
     )?;
     let cases = count_cases();
     let mut failures = 0;
     for (name, w, h, values, particles, gamma) in cases {
-        for epsilon in [0.0, 0.1] {
-            let sums =
-                mapped_count_sums((w, h, &values), particles, gamma, epsilon, (sets, per_set));
+        for (filter, epsilon) in [
+            (MapFilter::Nearest, 0.0),
+            (MapFilter::Nearest, 0.1),
+            (MapFilter::Bilinear, 0.0),
+            (MapFilter::Bilinear, 0.1),
+        ] {
+            let sums = mapped_count_sums(
+                (w, h, &values),
+                filter,
+                particles,
+                gamma,
+                epsilon,
+                (sets, per_set),
+            );
             let z = sums.map(|s| if s.means > 0.0 { s.z() } else { 0.0 });
             let dispersion = sums.map(|s| if s.means > 0.0 { s.dispersion() } else { 1.0 });
             let masked = sums[0].masked_footprints + sums[1].masked_footprints;
@@ -51,7 +62,8 @@ pub(crate) fn counts(quick: bool, report: &mut String) -> anyhow::Result<Check> 
             failures += usize::from(!ok);
             writeln!(
                 report,
-                "| {name} ({w} × {h}) | {particles:.0e} | {gamma}° | {epsilon} | {:.2} | {:.2} | {:.3} | {:.3} | {masked} | {masked_count} | {} |",
+                "| {name} ({w} × {h}) | {} | {particles:.0e} | {gamma}° | {epsilon} | {:.2} | {:.2} | {:.3} | {:.3} | {masked} | {masked_count} | {} |",
+                filter.name(),
                 z[0],
                 z[1],
                 dispersion[0],
@@ -63,7 +75,7 @@ pub(crate) fn counts(quick: bool, report: &mut String) -> anyhow::Result<Check> 
     Ok(Check {
         name: "maps: counts",
         passed: failures == 0,
-        summary: format!("8 rows, {failures} failed, masks hold 0"),
+        summary: format!("16 rows (nearest and bilinear), {failures} failed, masks hold 0"),
     })
 }
 

@@ -99,28 +99,31 @@ impl TentSpan {
     }
 }
 
-/// `range` [a, b) of texel indices (a ≥ −n, b ≤ 2n) as at most three ranges within [0, n).
-fn wrapped(a: i64, b: i64, n: usize) -> impl Iterator<Item = (usize, usize)> {
-    let n = n as i64;
-    [(a, b.min(0)), (a.max(0), b.min(n)), (a.max(n), b)]
-        .into_iter()
-        .filter(|(lo, hi)| lo < hi)
-        .map(move |(lo, hi)| {
-            let shift = lo.div_euclid(n) * n;
-            ((lo - shift) as usize, (hi - shift) as usize)
-        })
-}
-
 impl DensityMap {
+    /// Σ q over texel columns [0, c) × rows [0, r) of the map repeated over the plane (the
+    /// summed-area table extended periodically; c and r may be negative), exactly.
+    fn periodic_prefix(&self, c: i64, r: i64) -> i64 {
+        let (w, h) = (self.width as i64, self.height as i64);
+        if (0..=w).contains(&c) && (0..=h).contains(&r) {
+            return self.sat[r as usize * (self.width + 1) + c as usize] as i64;
+        }
+        let (qc, c) = (c.div_euclid(w), c.rem_euclid(w) as usize);
+        let (qr, r) = (r.div_euclid(h), r.rem_euclid(h) as usize);
+        let at = |c: usize, r: usize| self.sat[r * (self.width + 1) + c] as i64;
+        at(c, r)
+            + qc * at(self.width, r)
+            + qr * at(c, self.height)
+            + qc * qr * at(self.width, self.height)
+    }
+
     /// Σ q over texel columns [i0, i1) × rows [j0, j1), indices wrapped into the map.
     fn wrapped_sum(&self, (i0, i1): (i64, i64), (j0, j1): (i64, i64)) -> u64 {
-        let mut sum = 0;
-        for rows in wrapped(j0, j1, self.height) {
-            for columns in wrapped(i0, i1, self.width) {
-                sum += self.rect_sum(columns, rows);
-            }
+        let (w, h) = (self.width as i64, self.height as i64);
+        if 0 <= i0 && i1 <= w && 0 <= j0 && j1 <= h {
+            return self.rect_sum((i0 as usize, i1 as usize), (j0 as usize, j1 as usize));
         }
-        sum
+        (self.periodic_prefix(i1, j1) - self.periodic_prefix(i0, j1) - self.periodic_prefix(i1, j0)
+            + self.periodic_prefix(i0, j0)) as u64
     }
 
     /// ∫ d over the box [min, min + size]² in fixed-point texel units, bilinear.
@@ -141,13 +144,29 @@ impl DensityMap {
     pub(super) fn bilinear_is_constant_over(&self, min: DVec2, size: f64) -> bool {
         let columns = TentSpan::new(min.x, min.x + size, self.width);
         let rows = TentSpan::new(min.y, min.y + size, self.height);
+        // The spans as at most three pieces within the map each (they reach one or two texels
+        // past the square's edges, which wrap).
+        let pieces = |first: i64, last: i64, n: usize| {
+            let n = n as i64;
+            [
+                (first, last.min(-1)),
+                (first.max(0), last.min(n - 1)),
+                (first.max(n), last),
+            ]
+            .into_iter()
+            .filter(|(lo, hi)| lo <= hi)
+            .map(move |(lo, hi)| {
+                let shift = lo.div_euclid(n) * n;
+                ((lo - shift) as usize, (hi - shift) as usize)
+            })
+        };
         let first = self.fixed(
             columns.first.rem_euclid(self.width as i64) as usize,
             rows.first.rem_euclid(self.height as i64) as usize,
         );
-        wrapped(rows.first, rows.last + 1, self.height).all(|(j0, j1)| {
-            wrapped(columns.first, columns.last + 1, self.width).all(|(i0, i1)| {
-                self.texels_constant((i0, i1 - 1), (j0, j1 - 1)) && self.fixed(i0, j0) == first
+        pieces(rows.first, rows.last, self.height).all(|(j0, j1)| {
+            pieces(columns.first, columns.last, self.width).all(|(i0, i1)| {
+                self.texels_constant((i0, i1), (j0, j1)) && self.fixed(i0, j0) == first
             })
         })
     }
@@ -175,22 +194,23 @@ impl DensityMap {
     /// bilinear (see the module docs): x by the box's marginal, then y given x.
     pub(super) fn bilinear_place(&self, min: DVec2, size: f64, u: [f64; 2]) -> DVec2 {
         let rows = TentSpan::new(min.y, min.y + size, self.height);
-        // Σ over columns [a, b) of the columns' tent-weighted sums over the box's rows.
-        let columns_sum = |a: i64, b: i64| {
+        // Σ over columns [0, c) of the columns' tent-weighted sums over the box's rows.
+        let columns_prefix = |c: i64| {
             rows.groups()
                 .iter()
-                .map(|&(j0, j1, w)| self.wrapped_sum((a, b), (j0, j1)) as f64 * w)
+                .map(|&(j0, j1, w)| {
+                    (self.periodic_prefix(c, j1) - self.periodic_prefix(c, j0)) as f64 * w
+                })
                 .sum::<f64>()
         };
-        let x = invert_tents(min.x, min.x + size, self.width, &columns_sum, u[0]);
+        let x = invert_tents(min.x, min.x + size, self.width, &columns_prefix, u[0]);
         // Along y at x: the two columns around x, interpolated.
         let s = x * self.width as f64 - 0.5;
         let (k, t) = (s.floor() as i64, s - s.floor());
-        let column_sum = |a: i64, b: i64| {
-            (1.0 - t) * self.wrapped_sum((k, k + 1), (a, b)) as f64
-                + t * self.wrapped_sum((k + 1, k + 2), (a, b)) as f64
-        };
-        let y = invert_tents(min.y, min.y + size, self.height, &column_sum, u[1]);
+        let column =
+            |k: i64, r: i64| (self.periodic_prefix(k + 1, r) - self.periodic_prefix(k, r)) as f64;
+        let rows_prefix = |r: i64| (1.0 - t) * column(k, r) + t * column(k + 1, r);
+        let y = invert_tents(min.y, min.y + size, self.height, &rows_prefix, u[1]);
         DVec2::new(x, y)
     }
 
@@ -247,32 +267,37 @@ impl DensityMap {
 }
 
 /// The position in [lo, hi] (within [0, 1]) where the cumulative of a tent-interpolated
-/// sequence over `n` texels passes the fraction `u` of its integral over [lo, hi]; `sum(a, b)`
-/// is the sequence summed over texels [a, b) (wrapped), each ≥ 0. See the module docs.
-fn invert_tents(lo: f64, hi: f64, n: usize, sum: &dyn Fn(i64, i64) -> f64, u: f64) -> f64 {
+/// sequence over `n` texels passes the fraction `u` of its integral over [lo, hi];
+/// `prefix(c)` is the sequence summed over texels [0, c) (any integer c, the sequence
+/// repeating with period n), non-decreasing. See the module docs.
+fn invert_tents(lo: f64, hi: f64, n: usize, prefix: &dyn Fn(i64) -> f64, u: f64) -> f64 {
     let (a, b) = (lo * n as f64, hi * n as f64);
     let span = TentSpan::new(lo, hi, n);
-    let value = |i: i64| sum(i, i + 1);
+    let value = |i: i64| prefix(i + 1) - prefix(i);
     // The low partly covered texels' tents before a: their share left of the interval.
     let before_a: f64 = (span.first..=span.last)
         .take_while(|&i| (i as f64 + 0.5) - 1.0 < a)
         .map(|i| value(i) * tent_cumulative(a - i as f64 - 0.5))
         .sum();
-    // The mass of [a, centre of texel k], for centres within (a, b).
-    let at_centre = |k: i64| sum(span.first, k) + 0.5 * value(k) - before_a;
+    let start = prefix(span.first);
+    // The mass of [a, centre of texel k], for centres within (a, b): the texels before k whole,
+    // half of k's own, less the share of the first tents left of a.
+    let at_centre = |k: i64| 0.5 * (prefix(k) + prefix(k + 1)) - start - before_a;
     let total: f64 = span
         .groups()
         .iter()
-        .map(|&(i0, i1, w)| sum(i0, i1) * w)
+        .map(|&(i0, i1, w)| (prefix(i1) - prefix(i0)) * w)
         .sum();
     let target = u * total;
-    // Segments between consecutive breakpoints: a, the centres inside (a, b), b.
-    // The texel centres k + ½ strictly inside (a, b).
+    if !(target < total) {
+        return hi;
+    }
+    // The texel centres k + ½ strictly inside (a, b); breakpoint m is a for m = 0, the
+    // centres for m = 1 ..= centres, b after them.
     let first_centre = (a - 0.5).floor() as i64 + 1;
     let last_centre = ((b - 0.5).ceil() as i64 - 1).max(first_centre - 1);
+    let centres = last_centre - first_centre + 1;
     let breakpoint = |m: i64| -> (f64, f64) {
-        // Breakpoint m: 0 is a, 1 ..= centres, the last is b; its position and cumulative.
-        let centres = last_centre - first_centre + 1;
         if m == 0 {
             (a, 0.0)
         } else if m > centres {
@@ -282,12 +307,8 @@ fn invert_tents(lo: f64, hi: f64, n: usize, sum: &dyn Fn(i64, i64) -> f64, u: f6
             (k as f64 + 0.5, at_centre(k))
         }
     };
-    let segments = last_centre - first_centre + 2;
-    // Largest m with cumulative(m) ≤ target (cumulative(0) = 0 ≤ target).
-    let (mut lo_m, mut hi_m) = (0_i64, segments);
-    if !(target < total) {
-        return hi;
-    }
+    // The last breakpoint at or below the target: cumulative(lo_m) ≤ target < cumulative(hi_m).
+    let (mut lo_m, mut hi_m) = (0_i64, centres + 1);
     while hi_m - lo_m > 1 {
         let mid = lo_m + (hi_m - lo_m) / 2;
         if breakpoint(mid).1 <= target {
