@@ -134,13 +134,17 @@ class Material:
     (0, 16]; 1 by default: larger is faster and lumpier).
 
     Maps vary the material over its texture square (keyword only; NumPy arrays, row 0 at the
-    top of the texture, v from 1 − 1/H to 1, column 0 starting at u = 0, each texel constant
-    and the map tiling with the square): ``density_map`` (H, W), d in [0, 1], N·d flakes per
+    top of the texture, v from 1 − 1/H to 1, column 0 starting at u = 0, the map tiling with
+    the square): ``density_map`` (H, W), d in [0, 1], N·d flakes per
     unit area (0 masks: no flake at all); ``alpha_map`` (H, W), the flakes' isotropic α in
     [1e-4, 1], replacing ``alpha``/``alpha_y`` (the same size as ``density_map`` when both are
     given); ``tint_map`` (H, W, 3), a colour in [0, 1] scaling the flakes' reflectance (its
     mean over each footprint); ``roughness_levels`` (K, 8 by default): an ``alpha_map`` with
-    at most K distinct values is exact, one with more is K levels interpolated in log α.
+    at most K distinct values is exact, one with more is K levels interpolated in log α;
+    ``map_filter`` ("nearest", the default, or "bilinear"): how ``density_map`` and
+    ``alpha_map`` are reconstructed between texels, each texel constant over its square or
+    interpolated bilinearly between the texels' centres (wrapping as the map tiles), so a
+    mask's edge ramps over one texel; ``tint_map`` stays nearest.
     A bad texel raises ``ValueError`` naming the map and the texel (column, row).
 
     Invalid parameters raise ``ValueError`` naming the parameter. A material pickles and
@@ -151,7 +155,8 @@ class Material:
                  gamma_deg=None, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
                  negligible_count=1e-12, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
                  pdf_points=64, gamma_degrees=None, density_map=None, alpha_map=None,
-                 tint_map=None, roughness_levels=8, dense="sampled", dense_node_scale=1.0):
+                 tint_map=None, roughness_levels=8, dense="sampled", dense_node_scale=1.0,
+                 map_filter="nearest"):
         if gamma_deg is not None:
             if gamma_degrees is not None:
                 raise ValueError("give gamma_degrees or gamma_deg (its older name), not both")
@@ -181,6 +186,7 @@ class Material:
         if fresnel is not None:
             spec["fresnel"] = _fresnel(fresnel)
         spec["roughness_levels"] = _finite("roughness_levels", roughness_levels)
+        spec["map_filter"] = _name("map_filter", map_filter)
         maps = {
             "density_map": _map("density_map", density_map, 2),
             "alpha_map": _map("alpha_map", alpha_map, 2),

@@ -31,9 +31,13 @@ def _material():
     return glint.Material(**KWARGS, density_map=DENSITY, alpha_map=ALPHA, tint_map=TINT)
 
 
-def test_maps_match_json_lines_bit_for_bit():
-    m = _material()
-    spec = dict(KWARGS, density_map=DENSITY.tolist(), alpha_map=ALPHA.tolist(),
+@pytest.mark.parametrize("map_filter", [None, "bilinear"])
+def test_maps_match_json_lines_bit_for_bit(map_filter):
+    """The maps as NumPy arrays and as eval's JSON rows give the same answers, bit for bit,
+    each texel constant (the default) or reconstructed bilinearly."""
+    kwargs = dict(KWARGS) if map_filter is None else dict(KWARGS, map_filter=map_filter)
+    m = glint.Material(**kwargs, density_map=DENSITY, alpha_map=ALPHA, tint_map=TINT)
+    spec = dict(kwargs, density_map=DENSITY.tolist(), alpha_map=ALPHA.tolist(),
                 tint_map=TINT.tolist())
     wi, wo, uv, dx, dy, u = _queries(60, seed=11)
     dx, dy = dx * 0.2, dy * 0.2
@@ -67,6 +71,52 @@ def test_maps_match_json_lines_bit_for_bit():
     assert found > 0
 
 
+def test_map_filter_nearest_is_the_default_and_bilinear_interpolates_between_centres():
+    """``map_filter="nearest"`` answers as the material without it, bit for bit (f̂, counts,
+    samples, pdfs, the smooth limit); ``"bilinear"`` answers otherwise, and its smooth limit
+    on a density map alone is d(uv) times the unmapped one, d interpolated between the texel
+    centres ((i + ½)/W, 1 − (r + ½)/H), wrapping."""
+    wi, wo, uv, dx, dy, u = _queries(80, seed=17)
+    dx, dy = dx * 0.2, dy * 0.2
+    default, nearest, bilinear = (
+        glint.Material(**KWARGS, density_map=DENSITY, alpha_map=ALPHA, tint_map=TINT, **extra)
+        for extra in ({}, {"map_filter": "nearest"}, {"map_filter": "bilinear"}))
+
+    def answers(m):
+        r = m.eval(wi, wo, uv, dx, dy)
+        s = m.sample(wi, u, uv, dx, dy)
+        return [r["count"], r["f_hat"], r["f_smooth"], s["wo"], s["pdf"], m.pdf(wi, wo, uv)]
+
+    reference = answers(default)
+    assert all(_same(a, b) for a, b in zip(answers(nearest), reference))
+    assert not _same(answers(bilinear)[0], reference[0])
+    assert not _same(answers(bilinear)[2], reference[2])
+
+    # The smooth limit under a density map alone: d(uv)·f, d bilinear between the centres.
+    plain = dict(distribution="beckmann", alpha=0.1, particles=1e6, gamma_degrees=2.0)
+    flat = glint.Material(**plain)
+    mapped = glint.Material(**plain, density_map=DENSITY, map_filter="bilinear")
+    height, width = DENSITY.shape
+    from_bottom = DENSITY[::-1]
+    points = np.array([[0.125, 5 / 6], [0.5, 0.5], [0.0, 0.0], [0.99, 0.01], [-0.3, 1.7]])
+    zero = np.zeros_like(points)
+    up = np.array([[0.0, 0.0, 1.0]] * len(points))
+    out = np.array([[0.05, 0.0, 1.0]] * len(points))
+    f = flat.eval(up, out, points, zero, zero)["f_smooth"]
+    g = mapped.eval(up, out, points, zero, zero)["f_smooth"]
+    for (x, y), fk, gk in zip(points % 1.0, f, g):
+        s, t = x * width - 0.5, y * height - 0.5
+        i, j = math.floor(s), math.floor(t)
+        fs, ft = s - i, t - j
+        q = from_bottom[[j % height, (j + 1) % height]][:, [i % width, (i + 1) % width]]
+        d = ((1 - ft) * ((1 - fs) * q[0, 0] + fs * q[0, 1])
+             + ft * ((1 - fs) * q[1, 0] + fs * q[1, 1]))
+        # (d is stored to 2⁻³², so to 1e-9 here.)
+        assert gk == pytest.approx(d * fk, rel=1e-9, abs=1e-300), (x, y, d)
+    # At a texel's centre the value is the texel's: texel (column 0, row 0) at (1/8, 5/6).
+    assert g[0] == pytest.approx(DENSITY[0, 0] * f[0], rel=1e-12)
+
+
 def test_row_zero_is_the_top_of_the_texture():
     """A density map whose top row alone is 1: footprints in the top third of the square
     find flakes, those in the bottom two thirds none, even with a wide cone."""
@@ -93,6 +143,9 @@ def test_row_zero_is_the_top_of_the_texture():
     (dict(density_map=np.zeros((2, 2))), "density_map: every texel is 0"),
     (dict(density_map=np.ones((2, 2)), alpha_map=np.full((2, 3), 0.1)), "the same size"),
     (dict(roughness_levels=0), "roughness_levels"),
+    (dict(density_map=np.ones((2, 2)), map_filter="cubic"),
+     'map_filter "cubic" is unknown: use "nearest" or "bilinear"'),
+    (dict(map_filter=None), "map_filter"),
 ])
 def test_bad_maps_raise_value_error_naming_the_map_and_texel(kwargs, message):
     with pytest.raises(ValueError, match=None) as error:
