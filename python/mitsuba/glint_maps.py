@@ -15,7 +15,10 @@ What is accepted, per parameter:
   ``variant`` or ``float16``) are read as stored: Mitsuba decoded sRGB sources to linear on
   loading unless ``raw``. The texture's ``to_uv`` must be the identity (``uv_scale`` scales
   the maps with the flakes, which share one texture square); its ``filter_type`` and
-  ``wrap_mode`` do not apply: glint's texels are constant over their squares and tile.
+  ``wrap_mode`` do not apply: glint's maps tile, and the BSDF's ``map_filter`` says how the
+  density and roughness are reconstructed between texels (each texel constant, ``nearest``,
+  the default; or ``bilinear`` between the texels' centres, where Mitsuba's own bilinear
+  lookups put the image's values; the tint is nearest).
   Mitsuba pads an image smaller than 2 × 2 to 2 × 2 by repeating its last row or column,
   which is the same map.
 - a filename (a string): the image read as glint-tracer reads a scene file's

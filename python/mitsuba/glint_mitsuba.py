@@ -70,7 +70,9 @@ class GlintBSDF(mi.BSDF):
     ("exact"), ``negligible_count`` (1e-12), ``expected_footprint_area`` (1e-6),
     ``pdf_quadrature`` ("cubature", or "qmc"), ``pdf_points`` (64), ``dense`` ("sampled", or
     "exact"), ``dense_node_scale`` (1), ``roughness_levels`` (8;
-    without an ``alpha_map`` it changes nothing): as ``glint.Material``, which checks them (an
+    without an ``alpha_map`` it changes nothing), ``map_filter`` ("nearest", or "bilinear":
+    how ``density_map`` and ``alpha_map`` are reconstructed between texels; ``tint_map`` stays
+    nearest): as ``glint.Material``, which checks them (an
     invalid one raises ``ValueError`` naming it); ``uv_scale`` (1): texture repetitions per
     unit of the shape's (u, v), positive and finite, as in the scene files. F = 1 (no Fresnel).
 

@@ -75,7 +75,7 @@ def material_parameters(props):
         expected_footprint_area=get("expected_footprint_area", 1e-6),
         pdf_quadrature=get("pdf_quadrature", "cubature"), pdf_points=get("pdf_points", 64),
         roughness_levels=get("roughness_levels", 8), dense=get("dense", "sampled"),
-        dense_node_scale=get("dense_node_scale", 1.0))
+        dense_node_scale=get("dense_node_scale", 1.0), map_filter=get("map_filter", "nearest"))
     maps, sources = maps_from_properties(props)
     return params, maps, sources, uv_scale
 
@@ -103,28 +103,70 @@ def _float(a):
     return mi.Float(np.ascontiguousarray(a, dtype=np.float32))
 
 
+def _fixed_point(values):
+    """round(d·2³²) as the package stores a density (Rust's ``round``: halves away from 0),
+    exact: d·2³² is exact, and so is its fraction above its floor."""
+    scaled = np.asarray(values, dtype=np.float64) * 2.0**32
+    whole = np.floor(scaled)
+    return whole + (scaled - whole >= 0.5)
+
+
 class TexelLookup:
     """A glint map's texels in Dr.Jit arrays, read at texture positions as the package reads
-    them (glint-brdf's ``DensityMap::value_at`` and ``TintMap::value_at``): the texel holding
-    uv wrapped into the unit square, densities in the package's fixed point (steps of 2⁻³²)."""
+    them (glint-tree's ``DensityMap::value_at``, glint-brdf's ``TintMap::value_at``), uv
+    wrapped into the unit square: the texel holding uv (``nearest``), or (``bilinear``, a
+    density only) the four texel centres around uv interpolated as
+    ``DensityMap::value_at`` does, centre of texel (i, j) at ((i + ½)/W, (j + ½)/H), j counted
+    from the bottom row, indices wrapping. Densities are in the package's fixed point (steps
+    of 2⁻³²)."""
 
-    def __init__(self, texels, fixed_point=False):
-        """``texels``: a glint map, (H, W) or (H, W, 3) float64, row 0 at the top (v near 1)."""
+    def __init__(self, texels, fixed_point=False, bilinear=False):
+        """``texels``: a glint map, (H, W) or (H, W, 3) float64, row 0 at the top (v near 1);
+        ``bilinear`` needs ``fixed_point`` (it interpolates the fixed-point integers, as the
+        package does, and scales by 2⁻³² after)."""
+        if bilinear and not fixed_point:
+            raise ValueError("a bilinear TexelLookup reads a density: give fixed_point=True")
         texels = np.asarray(texels, dtype=np.float64)
+        self.bilinear = bilinear
         if fixed_point:
-            texels = np.floor(texels * 2.0**32 + 0.5) / 2.0**32
+            texels = _fixed_point(texels)
+            if not bilinear:
+                texels = texels / 2.0**32
         self.height, self.width = texels.shape[:2]
         from_bottom = np.flipud(texels).reshape(self.height * self.width, -1)
         self.channels = [mi.Float64(np.ascontiguousarray(from_bottom[:, c]))
                          for c in range(from_bottom.shape[1])]
 
     def at(self, uv):
-        """The texel values at ``uv`` (Vector2d), one Float64 per channel."""
+        """The map's values at ``uv`` (Vector2d), one Float64 per channel."""
         x = uv - dr.floor(uv)
+        if self.bilinear:
+            return self._bilinear_at(x)
         column = dr.minimum(mi.UInt32(x.x * self.width), self.width - 1)
         row = dr.minimum(mi.UInt32(x.y * self.height), self.height - 1)
         index = row * self.width + column
         return [dr.gather(mi.Float64, c, index) for c in self.channels]
+
+    def _bilinear_at(self, x):
+        """``DensityMap::value_at`` under the bilinear filter (``bilinear_fixed_at``), the
+        same operations in the same order: s = x·W − ½, t = y·H − ½, i = ⌊s⌋, j = ⌊t⌋, the
+        fractions fs, ft, and (1 − ft)((1 − fs)q₀₀ + fs·q₁₀) + ft((1 − fs)q₀₁ + fs·q₁₁) over
+        the fixed-point texels, then divided by 2³²."""
+        s = x.x * float(self.width) - 0.5
+        t = x.y * float(self.height) - 0.5
+        i, j = dr.floor(s), dr.floor(t)
+        fs, ft = s - i, t - j
+        # i ∈ [−1, W − 1] and j ∈ [−1, H − 1]: wrap by adding W (H) before the remainder.
+        i, j = mi.Int32(i) + self.width, mi.Int32(j) + self.height
+        columns = [mi.UInt32((i + d) % self.width) for d in (0, 1)]
+        rows = [mi.UInt32((j + d) % self.height) for d in (0, 1)]
+
+        def q(c, di, dj):
+            return dr.gather(mi.Float64, c, rows[dj] * self.width + columns[di])
+
+        return [((1.0 - ft) * ((1.0 - fs) * q(c, 0, 0) + fs * q(c, 1, 0))
+                 + ft * ((1.0 - fs) * q(c, 0, 1) + fs * q(c, 1, 1))) / 2.0**32
+                for c in self.channels]
 
 
 def _rows_finite(f):
@@ -210,6 +252,12 @@ def register():
              - 8
              - as ``glint.Material``: an ``alpha_map`` of at most this many distinct α is
                exact (without one it changes nothing)
+           * - map_filter
+             - string
+             - nearest
+             - as ``glint.Material``: ``density_map`` and ``alpha_map`` constant over each
+               texel (``nearest``) or bilinear between the texels' centres (``bilinear``);
+               ``tint_map`` stays nearest
            * - uv_scale
              - float
              - 1
@@ -221,10 +269,11 @@ def register():
         With maps, f̂ is the package's and a coloured tint answers in colour. A density or tint
         map leaves the lobe the same everywhere: the sampler, its pdf, the negligible-query
         test (the material's without maps, which bounds the mapped one's: a density is at most
-        1) and the smooth limit d(uv)·t(uv)·f (the texels read as the package reads them) stay
-        in Dr.Jit. A roughness map varies the lobe over the surface: the sampler, its pdf and
-        the smooth limit are then the package's at the texture position (one row per lane that
-        needs one), and every footprint query goes to the package.
+        1) and the smooth limit d(uv)·t(uv)·f (the texels read as the package reads them:
+        d bilinearly under ``map_filter`` ``bilinear``, t nearest) stay in Dr.Jit. A roughness
+        map varies the lobe over the surface: the sampler, its pdf and the smooth limit are
+        then the package's at the texture position (one row per lane that needs one), and every
+        footprint query goes to the package.
         """
 
         def __init__(self, props):
@@ -243,7 +292,9 @@ def register():
                 uniform = glint.Material(**self.params) if self.maps else self.material
                 self.lobe = Lobe(uniform._spec, uniform.negligible_test)
                 if "density_map" in self.maps:
-                    self.density = TexelLookup(self.maps["density_map"], fixed_point=True)
+                    self.density = TexelLookup(
+                        self.maps["density_map"], fixed_point=True,
+                        bilinear=self.params["map_filter"] == "bilinear")
                 if "tint_map" in self.maps:
                     self.tint = TexelLookup(self.maps["tint_map"])
             self.m_components = [flags]

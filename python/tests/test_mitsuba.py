@@ -230,6 +230,7 @@ def test_render_script_writes_an_image(tmp_path):
     ("glint", "seed", 1.7),
     ("glint", "alpha", math.nan),
     ("glint", "particles", 0.5),
+    ("glint", "map_filter", "cubic"),
     ("glint_direct", "footprint_scale", math.nan),
     ("glint_direct", "footprint_scale", -1.0),
     ("glint_direct", "footprint_scale", 1e300),

@@ -1,8 +1,10 @@
 """Maps in the Mitsuba 3 glint BSDF (python/mitsuba/glint_maps.py): density, roughness and tint
 maps given as bitmap textures or filenames answer as ``glint.Material`` with the same NumPy maps,
-bit for bit, in ``scalar_rgb`` and ``llvm_ad_rgb``; the maps lie where Mitsuba's own bitmap
-lookups put the image; the reading rules (8-bit, raw, sRGB, channels, files); refusals name the
-parameter; the example renders a mapped floor.
+bit for bit, in ``scalar_rgb`` and ``llvm_ad_rgb``, each texel constant or (``map_filter``
+``bilinear``) interpolated; the maps lie where Mitsuba's own bitmap lookups put the image, and a
+bilinear density where its bilinear lookups put the values; the llvm plugin reads a bilinear
+density in Dr.Jit as the package does; the reading rules (8-bit, raw, sRGB, channels, files);
+refusals name the parameter; the example renders a mapped floor.
 
 The llvm tests skip, saying why, where Mitsuba's LLVM backend cannot start
 (test_mitsuba_vectorized.py's probe)."""
@@ -71,17 +73,23 @@ def files(tmp_path_factory):
     return paths
 
 
-def _props(files):
+def _props(files, map_filter=None):
     """The three maps in the three ways: an in-memory float bitmap, a filename (8-bit PNG, read
-    linearly), an 8-bit sRGB bitmap texture (decoded)."""
-    return {"type": "glint", **KWARGS, "uv_scale": UV_SCALE,
+    linearly), an 8-bit sRGB bitmap texture (decoded); ``map_filter`` when given."""
+    filtered = {} if map_filter is None else {"map_filter": map_filter}
+    return {"type": "glint", **KWARGS, **filtered, "uv_scale": UV_SCALE,
             "density_map": {"type": "bitmap", "bitmap": _grey(DENSITY)},
             "alpha_map": str(files["alpha"]),
             "tint_map": {"type": "bitmap", "filename": str(files["tint"])}}
 
 
-def _reference():
-    return glint.Material(**KWARGS, **EXPECTED)
+def _reference(map_filter=None):
+    filtered = {} if map_filter is None else {"map_filter": map_filter}
+    return glint.Material(**KWARGS, **filtered, **EXPECTED)
+
+
+#: Each texel constant (the default), or the density and roughness bilinear.
+FILTERS = [None, "bilinear"]
 
 
 def _footprint_queries(n, seed):
@@ -96,15 +104,17 @@ def _footprint_queries(n, seed):
     return f32, f64, np.asarray(u[:, :3], dtype=np.float32)
 
 
-def test_scalar_plugin_answers_as_the_material_bit_for_bit(files):
+@pytest.mark.parametrize("map_filter", FILTERS)
+def test_scalar_plugin_answers_as_the_material_bit_for_bit(files, map_filter):
     """scalar_rgb: f̂ (in colour), the smooth limit at the texture position, the sampler's pdf
     and sample there are ``glint.Material``'s with the NumPy maps, bit for bit."""
     mi.set_variant("scalar_rgb")
-    bsdf = mi.load_dict(_props(files))
+    bsdf = mi.load_dict(_props(files, map_filter))
     assert isinstance(bsdf, gm.GlintBSDF)
+    assert bsdf.params["map_filter"] == (map_filter or "nearest")
     for name, expected in EXPECTED.items():
         assert np.array_equal(bsdf.maps[name], expected), name
-    reference = _reference()
+    reference = _reference(map_filter)
     (wi, wo, uv, dx, dy), (wi64, wo64, uv64, dx64, dy64), u = _footprint_queries(150, seed=8)
     r = reference.eval(wi64, wo64, uv64, dx64, dy64)
     zero = np.zeros_like(uv64)
@@ -166,15 +176,16 @@ def _colours(c):
 
 
 @needs_llvm
-def test_vectorized_plugin_answers_as_the_material_bit_for_bit(files, vectorized):
+@pytest.mark.parametrize("map_filter", FILTERS)
+def test_vectorized_plugin_answers_as_the_material_bit_for_bit(files, vectorized, map_filter):
     """llvm_ad_rgb, the same maps: f̂ on a wavefront is the package's in float32, bit for bit;
     the smooth limit, the pdf and the samples (from the package at the texture position: a
     roughness map) too; eval, pdf and sample equal the scalar plugin's."""
-    bsdf = mi.load_dict(_props(files))
+    bsdf = mi.load_dict(_props(files, map_filter))
     assert isinstance(bsdf, vectorized) and bsdf.lobe_varies and bsdf.coloured
     for name, expected in EXPECTED.items():
         assert np.array_equal(bsdf.maps[name], expected), name
-    reference = _reference()
+    reference = _reference(map_filter)
     (wi, wo, uv, dx, dy), (wi64, wo64, uv64, dx64, dy64), u = _footprint_queries(300, seed=9)
     r = reference.eval(wi64, wo64, uv64, dx64, dy64)
     ok = r["error"] == ""
@@ -203,7 +214,7 @@ def test_vectorized_plugin_answers_as_the_material_bit_for_bit(files, vectorized
 
     # The scalar plugin's eval, pdf and sample on the same queries.
     mi.set_variant("scalar_rgb")
-    scalar = mi.load_dict(_props(files))
+    scalar = mi.load_dict(_props(files, map_filter))
     expected = []
     for i in range(0, len(wi), 5):
         sj = mi.SurfaceInteraction3f()
@@ -277,6 +288,108 @@ def test_density_and_tint_maps_keep_the_dr_jit_lobe_and_its_skips_exact(vectoriz
     masked = np.all(smooth == 0, axis=1)
     assert 0.3 < masked.mean() < 0.7 and np.all(f[masked] == 0)
     assert f == pytest.approx(smooth, rel=2e-6, abs=1e-30)
+
+
+def _bilinear_reference(x, y, texels):
+    """glint-tree's ``DensityMap::value_at`` under the bilinear filter, written here from its
+    definition for float64 ``x``, ``y`` (arrays) and a map in glint's row order (row 0 at the
+    top): the fixed-point texels round(d·2³²) at their centres ((i + ½)/W, (j + ½)/H), j from
+    the bottom row, interpolated in the package's order of operations, wrapping, over 2³²."""
+    height, width = texels.shape
+    scaled = np.flipud(texels) * 2.0**32
+    fixed = np.floor(scaled) + (scaled - np.floor(scaled) >= 0.5)
+    x, y = x - np.floor(x), y - np.floor(y)
+    s, t = x * width - 0.5, y * height - 0.5
+    i, j = np.floor(s), np.floor(t)
+    fs, ft = s - i, t - j
+    i, j = i.astype(np.int64), j.astype(np.int64)
+
+    def q(di, dj):
+        return fixed[(j + dj) % height, (i + di) % width]
+
+    return ((1.0 - ft) * ((1.0 - fs) * q(0, 0) + fs * q(1, 0))
+            + ft * ((1.0 - fs) * q(0, 1) + fs * q(1, 1))) / 2.0**32
+
+
+@needs_llvm
+def test_a_bilinear_density_is_read_in_dr_jit_as_the_package_reads_it(vectorized):
+    """A density map alone keeps the lobe in Dr.Jit, and with ``map_filter`` ``bilinear`` the
+    plugin's Dr.Jit lookup d(uv) is the package's, bit for bit: it equals the definition
+    written here, and d(uv) times the unmapped material's smooth f is the mapped material's
+    smooth f in double precision exactly (the package's smooth limit is d·f). The plugin's
+    smooth limit is the package's to float32 rounding; "nearest" still reads the texel."""
+    density = np.array([[1.0, 0.0, 0.3, 0.77],
+                        [0.25, 0.5, 0.0, 1.0],
+                        [0.9, 1.0, 0.123456789, 0.0]], dtype=np.float32)
+    material = dict(particles=1e7, gamma_degrees=2.0, seed=4)
+    bitmap = {"type": "bitmap", "bitmap": _grey(density)}
+    bsdf = mi.load_dict({"type": "glint", **material, "uv_scale": UV_SCALE,
+                         "density_map": bitmap, "map_filter": "bilinear"})
+    nearest = mi.load_dict({"type": "glint", **material, "uv_scale": UV_SCALE,
+                            "density_map": bitmap, "map_filter": "nearest"})
+    assert not bsdf.lobe_varies and bsdf.density.bilinear and not nearest.density.bilinear
+    glint_map = np.flipud(density.astype(np.float64))
+    rng = np.random.default_rng(7)
+    n = 3000
+    # Texture positions anywhere, on texel centres and edges, and a hair from the tile's edge.
+    centres = np.stack(np.meshgrid((np.arange(8) + 0.5) / 8, (np.arange(6) + 0.5) / 6), -1)
+    uv = np.concatenate([
+        rng.uniform(-3, 4, (n, 2)), centres.reshape(-1, 2),
+        np.array([[0.0, 0.0], [1.0, 1.0], [-1e-17, 0.5], [0.5, -1e-17], [0.999999, 0.999999]])])
+    d = bsdf.density.at(mi.Vector2d(uv[:, 0], uv[:, 1]))[0].numpy()
+    expected = _bilinear_reference(uv[:, 0], uv[:, 1], glint_map)
+    assert np.array_equal(d, expected)
+    assert np.sum((d > 0) & ~np.isin(d, density.astype(np.float64))) > n // 2
+
+    # Against the package: its smooth limit at uv is d(uv)·f, bit for bit.
+    reference = glint.Material(**material, density_map=glint_map, map_filter="bilinear")
+    flat = glint.Material(**material)
+    wi = np.tile([0.2, 0.1, 0.97], (len(uv), 1))
+    wo = np.tile([-0.25, -0.05, 0.96], (len(uv), 1))
+    zero = np.zeros_like(uv)
+    f_mapped = reference.eval(wi, wo, uv, zero, zero)["f_smooth"]
+    f_flat = flat.eval(wi, wo, uv, zero, zero)["f_smooth"]
+    assert np.all(f_flat > 0) and np.array_equal(d * f_flat, f_mapped)
+
+    # The plugin's smooth limit on a wavefront (uv in float32, times uv_scale in double).
+    uv32 = np.asarray(uv[:n], dtype=np.float32)
+    wi32, wo32 = np.asarray(wi[:n], np.float32), np.asarray(wo[:n], np.float32)
+    uv64 = uv32.astype(np.float64) * UV_SCALE
+    smooth = reference.eval(wi32.astype(float), wo32.astype(float), uv64, zero[:n],
+                            zero[:n])["f_smooth"]
+    si = _wavefront(wi32, uv32, np.zeros_like(uv32), np.zeros_like(uv32))
+    w = mi.Vector3f(*[mi.Float(np.ascontiguousarray(wo32[:, k])) for k in range(3)])
+    f = np.asarray(bsdf.brdf(si, w, mi.Bool(True)).numpy())
+    assert f == pytest.approx(smooth, rel=2e-6, abs=1e-30)
+    g = np.asarray(nearest.brdf(si, w, mi.Bool(True)).numpy())
+    assert np.sum(f != g) > n // 2
+
+
+def test_a_bilinear_density_lies_where_mitsubas_bilinear_lookups_put_the_values():
+    """``map_filter`` ``bilinear``: the density the package reads at (u, v) is what Mitsuba's
+    own ``bitmap`` texture of the image returns there with its default bilinear filter and
+    repeating wrap, to float32 rounding (the package's d is d(uv)·f / f; Mitsuba's lookup runs
+    in float32)."""
+    mi.set_variant("scalar_rgb")
+    texture = mi.load_dict({"type": "bitmap", "bitmap": _grey(DENSITY), "raw": True})
+    bsdf = mi.load_dict({"type": "glint", "particles": 1e6, "map_filter": "bilinear",
+                         "density_map": {"type": "bitmap", "bitmap": _grey(DENSITY)}})
+    flat = glint.Material(particles=1e6)
+    rng = np.random.default_rng(12)
+    uv = np.asarray(rng.uniform(-1, 2, (200, 2)), dtype=np.float32)
+    # Directions as Mitsuba holds them (float32), so that both materials see the same ones.
+    wi, wo = (np.array(v, dtype=np.float32).astype(float)
+              for v in ([0.1, 0.0, 0.995], [-0.1, 0.02, 0.995]))
+    f = float(flat.eval(wi, wo, [0.0, 0.0], [0.0, 0.0], [0.0, 0.0])["f_smooth"])
+    between = 0
+    for u, v in uv:
+        si = mi.SurfaceInteraction3f()
+        si.wi, si.uv = mi.Vector3f(*wi), mi.Point2f(u, v)
+        looked_up = texture.eval_1(si)
+        d = bsdf.brdf(si, mi.Vector3f(*wo)) / f
+        assert d == pytest.approx(looked_up, abs=2e-6), (u, v)
+        between += not np.isin(np.float32(looked_up), DENSITY)
+    assert between > 150
 
 
 def _material_maps(props, variant="scalar_rgb"):

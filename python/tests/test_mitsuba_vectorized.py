@@ -356,6 +356,7 @@ def test_path_integrator_matches_mitsubas_path(plugins):
     ("glint", "uv_scale", -1.0),
     ("glint", "seed", 1.7),
     ("glint", "particles", 0.5),
+    ("glint", "map_filter", "cubic"),
     ("glint_direct", "footprint_scale", math.nan),
     ("glint_path", "footprint_scale", -1.0),
     ("glint_path", "max_depth", -5),
