@@ -467,3 +467,63 @@ fn the_tint_is_the_flakes_mean_under_a_density_map() {
     }
     assert!(checked > 0);
 }
+
+/// Under `map_filter` bilinear the roughness levels' densities d·w_k are interpolated like
+/// the density: at every point they sum to the bilinear density (the levels' weights sum to 1
+/// at every texel), each is continuous across texel edges, and a density map and a roughness
+/// map filtered differently are refused naming both filters.
+#[test]
+fn bilinear_roughness_levels_sum_to_the_bilinear_density() {
+    use glint_brdf::MapFilter;
+    let (alphas, densities) = striped_maps();
+    // Exact levels (two values) and interpolated ones (a third α between them, K = 2).
+    let mut three = alphas.clone();
+    three[7] = 0.12;
+    for (alphas, levels) in [(alphas, 8), (three, 2)] {
+        let density =
+            Arc::new(DensityMap::with_filter(6, 4, &densities, MapFilter::Bilinear).unwrap());
+        let alpha = RoughnessMap::new(6, 4, &alphas)
+            .unwrap()
+            .with_filter(MapFilter::Bilinear);
+        let material = DiscreteBrdf::new(GlintParameters {
+            density_map: Some(Arc::clone(&density)),
+            alpha_map: Some(Arc::new(alpha.clone())),
+            roughness_levels: levels,
+            ..GlintParameters::new(beckmann(0.1))
+        })
+        .unwrap();
+        let level_maps: Vec<DensityMap> = material
+            .level_trees()
+            .map(|(_, tree)| tree.density_map().expect("a level map").clone())
+            .collect();
+        assert!(level_maps.len() >= 2);
+        assert!(level_maps.iter().all(|m| m.filter() == MapFilter::Bilinear));
+        let mut rng = SplitMix64::new(5);
+        for _ in 0..500 {
+            let x = DVec2::new(rng.uniform(), rng.uniform());
+            let sum: f64 = level_maps.iter().map(|m| m.value_at(x)).sum();
+            // Each level is rounded to 2^-32 on its own.
+            assert!((sum - density.value_at(x)).abs() < 1e-8, "at {x}: {sum}");
+            let step = DVec2::new(1e-9, 1e-9);
+            for m in &level_maps {
+                assert!((m.value_at(x) - m.value_at(x + step)).abs() < 1e-6);
+            }
+        }
+        let nearest = Arc::new(DensityMap::new(6, 4, &densities).unwrap());
+        let error = DiscreteBrdf::new(GlintParameters {
+            density_map: Some(nearest),
+            alpha_map: Some(Arc::new(alpha)),
+            ..GlintParameters::new(beckmann(0.1))
+        })
+        .unwrap_err();
+        assert!(
+            matches!(error, BrdfError::MapFiltersDiffer { .. }),
+            "{error}"
+        );
+        let message = error.to_string();
+        assert!(
+            message.contains("\"nearest\"") && message.contains("\"bilinear\""),
+            "{message}"
+        );
+    }
+}
