@@ -334,7 +334,7 @@ pub fn layer_seed(seed: u64, k: usize) -> u64 {
 
 impl DiscreteBrdf {
     /// Builds the material: validates the parameters and builds its count tree (2–4 ms; the
-    /// negligible-query test adds 0.3–8 ms, about 20 ms for strongly anisotropic GGX, the
+    /// negligible-query test adds 0.3–6 ms, about 12 ms for strongly anisotropic GGX, the
     /// first time the process meets the distribution and α, nothing for later materials of
     /// that law).
     ///

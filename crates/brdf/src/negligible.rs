@@ -15,8 +15,8 @@
 //! and lands uniformly in it, with density P(L)/σ(L). Where Alg. 2 accepted a cell by δ_abs
 //! (the far tails) this can exceed p many times over (~40× for Beckmann α = 0.3 at 45°), so
 //! when the test is on, the material enumerates its final cells once per law in a process
-//! ([`CountTree::directional_law_excess_with`], with p's symmetry under turns about n: 0.3–8 ms
-//! for isotropic laws, about 20 ms for strongly anisotropic GGX, remembered for the 64 latest
+//! ([`CountTree::directional_law_excess_with`], with p's symmetry under turns about n, on up to
+//! 4 threads: 0.3–6 ms for isotropic laws, about 12 ms for strongly anisotropic GGX, remembered for the 64 latest
 //! laws) for W = max_L P(L)/(σ(L)·B_L), B_L the bound of
 //! [`Microfacet::particle_density_bound`] over L's circumscribed cap, and M, the mass of the
 //! cells where B_L = 0. A final cell meeting the conic's cap lies, with its circumscribed cap,
@@ -49,7 +49,7 @@ const REMEMBERED_LAWS: usize = 64;
 
 /// The law excesses computed in this process, the most recent last: materials of one law
 /// (realizations with other seeds, `eval`'s one-query materials, N or γ varied) enumerate the
-/// final cells once (0.3–20 ms), and every later build reads W and M here, bit for bit what
+/// final cells once (0.3–12 ms), and every later build reads W and M here, bit for bit what
 /// the enumeration gives (it is deterministic).
 static LAW_EXCESSES: Mutex<Vec<(LawKey, DirectionalLawExcess)>> = Mutex::new(Vec::new());
 

@@ -448,7 +448,7 @@ extern "C" {
 enum GlintStatus glint_material_params_default(struct GlintMaterialParams *params);
 
 /**
- * Builds a material (2–4 ms; a negligible count > 0 adds 0.3–8 ms, about 20 ms for strongly
+ * Builds a material (2–4 ms; a negligible count > 0 adds 0.3–6 ms, about 12 ms for strongly
  * anisotropic GGX, the first time the process meets the distribution and α, nothing for later
  * materials of that law) and stores its
  * handle in `*material`, or NULL on failure: `GLINT_INVALID_PARAMETER` names the invalid field.
