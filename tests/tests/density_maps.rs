@@ -71,13 +71,17 @@ fn counts_follow_the_map_binomially() {
     }
 }
 
-/// Under the bilinear reconstruction of the same maps, counts are binomial with mean
-/// N·∫_A d·∫p for the reconstructed d (∫_A d from the texels' tents, independently of the
-/// map's tables), and footprints where the reconstruction is 0 (all four centres around them
-/// 0, inside the disc's zeros) hold nothing.
+/// Under the bilinear reconstruction of the disc (a mask) and the sparse checkerboard (leaves
+/// over many texels), counts are binomial with mean N·∫_A d·∫p for the reconstructed d (∫_A d
+/// from the texels' tents, independently of the map's tables), and footprints where the
+/// reconstruction is 0 (all four centres around them 0, inside the disc's zeros) hold
+/// nothing. (`cargo xtask validate` runs every count case under both filters.)
 #[test]
 fn counts_follow_the_bilinear_map_binomially() {
-    for (name, w, h, values, particles, gamma) in count_cases() {
+    let cases = count_cases()
+        .into_iter()
+        .filter(|case| ["disc", "sparse checkerboard"].contains(&case.0));
+    for (name, w, h, values, particles, gamma) in cases {
         let sums = mapped_count_sums(
             (w, h, &values),
             MapFilter::Bilinear,
