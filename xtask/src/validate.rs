@@ -136,6 +136,10 @@ pub(crate) fn run(quick: bool, out: &Path, only: Option<&str>) -> anyhow::Result
             Box::new(|r| crate::validate_pdf::pdf_quadrature(quick, r)),
         ),
         (
+            "trade: pdf cost by rule",
+            Box::new(|r| crate::validate_pdf::pdf_cost_by_rule(quick, r)),
+        ),
+        (
             "renders",
             Box::new(|r| crate::validate_render::renders(quick, r)),
         ),

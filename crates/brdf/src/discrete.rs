@@ -56,7 +56,7 @@ use crate::distribution::{Microfacet, NormalSampling};
 use crate::error::BrdfError;
 use crate::fresnel::Fresnel;
 use crate::glint::GlintBxdf;
-use crate::glint_sampling::{GlintSampler, PdfQuadrature};
+use crate::glint_sampling::{GlintSampler, PdfQuadrature, PdfRule};
 use crate::map_budget::MapBytes;
 use crate::negligible::NegligibleTest;
 use crate::smooth::{MicrofacetBrdf, above_horizon, given};
@@ -591,6 +591,14 @@ impl DiscreteBrdf {
     #[must_use]
     pub fn sampling_pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
         self.mixture_pdf(wi, wo, None)
+    }
+
+    /// The rule [`DiscreteBrdf::sampling_pdf`] takes for `wi` and `wo` (under a roughness map,
+    /// the first level's; each level has its own sampler): which regime of the pdf a renderer's
+    /// directions fall in, and so what the pdf costs them.
+    #[must_use]
+    pub fn sampling_pdf_rule(&self, wi: DVec3, wo: DVec3) -> PdfRule {
+        self.layers[0].sampler.rule(given(wi), given(wo))
     }
 
     /// [`DiscreteBrdf::sample_direction`] at texture position `uv`: under a roughness map, the

@@ -19,7 +19,10 @@
 //! first `pdf_points` points of a (0, 2)-sequence (64 in the paper). Wider cones, where the lobe
 //! falls between any such rule's points, and (under the cubature) cones across the horizon,
 //! where p_s is cut off, take the slope-space rule of [`crate::slope_pdf`]: the lobe's mass in
-//! Eq. 8's conic, exact along rays and adaptive over their angle. The sampler does not depend
+//! Eq. 8's conic, an ellipse in slope space, exact along its chords and adaptive across them.
+//! [`PdfRule`] names the rules; `cargo xtask validate`'s trade suite measures what each costs
+//! (about 0.3 µs for 7 points, 0.6–1.2 µs for the polar rule, 1.5–3 µs in slope space, 6–13 µs
+//! across the horizon, Beckmann on one thread). The sampler does not depend
 //! on the footprint: the particles only enter the weight, through f̂.
 
 use glam::DVec3;
@@ -50,6 +53,27 @@ pub enum PdfQuadrature {
     /// The paper's quasi-Monte Carlo rule over `pdf_points` points of a (0, 2)-sequence, also
     /// for cones across the horizon (errors of a few percent there with 64 points).
     QuasiMonteCarlo,
+}
+
+/// The rule that computes the sampler's pdf for a pair of directions
+/// ([`crate::DiscreteBrdf::sampling_pdf_rule`]): the rules differ in cost by up to two orders
+/// of magnitude, and `cargo xtask validate`'s trade suite measures each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PdfRule {
+    /// The 7-point cubature over the cone (γ ≤ 0.35·α_s·cos θ_i).
+    SevenPoint,
+    /// The 32-point polar Gauss rule over the cone (γ ≤ 2·α_s·cos θ_i).
+    PolarGauss,
+    /// The paper's quasi-Monte Carlo points ([`PdfQuadrature::QuasiMonteCarlo`]).
+    QuasiMonteCarlo,
+    /// The slope-space rule for a wide cone above the horizon: the lobe's mass over an ellipse,
+    /// exact along its chords ([`crate::slope_pdf`]).
+    SlopeSpace,
+    /// The slope-space rule for a cone across the horizon (under the default cubature, every
+    /// such cone): the ellipse cut by the horizon's.
+    AcrossTheHorizon,
+    /// No rule: a direction below the horizon (pdf 0).
+    None,
 }
 
 /// The sampler of Sec. 3.4 for one material.
@@ -193,26 +217,43 @@ impl GlintSampler {
     /// model's density, by a rule over the cone where the cone is narrow against the lobe of
     /// ω′, else by the slope-space rule ([`crate::slope_pdf`]).
     pub(crate) fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
+        let (unit_wi, unit_wo) = (wi.normalize(), wo.normalize());
+        match (self.rule(wi, wo), &self.rules) {
+            (PdfRule::None, _) => 0.0,
+            (PdfRule::SlopeSpace | PdfRule::AcrossTheHorizon, _) => {
+                self.slope_rule_pdf(unit_wi, unit_wo)
+            }
+            (PdfRule::SevenPoint, ConeRules::Cubature { seven, .. }) => {
+                self.cone_rule_pdf(seven, unit_wi, unit_wo)
+            }
+            (_, ConeRules::Cubature { polar, .. }) => self.cone_rule_pdf(polar, unit_wi, unit_wo),
+            (_, ConeRules::QuasiMonteCarlo(points)) => self.cone_rule_pdf(points, unit_wi, unit_wo),
+        }
+    }
+
+    /// The rule [`GlintSampler::pdf`] takes for `wi` and `wo`.
+    pub(crate) fn rule(&self, wi: DVec3, wo: DVec3) -> PdfRule {
         if !(above_horizon(wi) && above_horizon(wo)) {
-            return 0.0;
+            return PdfRule::None;
         }
         let (wi, wo) = (wi.normalize(), wo.normalize());
-        if self.gamma_over_alpha > NARROW_CONE * wi.z {
-            return self.slope_rule_pdf(wi, wo);
-        }
-        let points = match &self.rules {
-            ConeRules::Cubature { .. } if wo.z < self.sin_gamma => {
-                return self.slope_rule_pdf(wi, wo);
-            }
-            ConeRules::Cubature { seven, .. }
-                if self.gamma_over_alpha <= CUBATURE_MAX_CONE * wi.z =>
-            {
-                seven
-            }
-            ConeRules::Cubature { polar, .. } => polar,
-            ConeRules::QuasiMonteCarlo(points) => points,
+        let across_the_horizon = wo.z < self.sin_gamma;
+        let slope_rule = if across_the_horizon {
+            PdfRule::AcrossTheHorizon
+        } else {
+            PdfRule::SlopeSpace
         };
-        self.cone_rule_pdf(points, wi, wo)
+        if self.gamma_over_alpha > NARROW_CONE * wi.z {
+            return slope_rule;
+        }
+        match &self.rules {
+            ConeRules::Cubature { .. } if across_the_horizon => slope_rule,
+            ConeRules::Cubature { .. } if self.gamma_over_alpha <= CUBATURE_MAX_CONE * wi.z => {
+                PdfRule::SevenPoint
+            }
+            ConeRules::Cubature { .. } => PdfRule::PolarGauss,
+            ConeRules::QuasiMonteCarlo(_) => PdfRule::QuasiMonteCarlo,
+        }
     }
 
     /// The cone average of p_s by the rule `points` over the cone (unit `wi`, `wo`).

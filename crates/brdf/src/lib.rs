@@ -69,7 +69,7 @@ pub use error::BrdfError;
 pub use fresnel::Fresnel;
 pub use glam::{DVec2, DVec3};
 pub use glint::{GlintBxdf, GlintEvaluation};
-pub use glint_sampling::PdfQuadrature;
+pub use glint_sampling::{PdfQuadrature, PdfRule};
 pub use glint_tree::{
     DenseCounts, DensityMap, DensityMapError, Footprint, MapFilter, MultinomialMode, QueryScratch,
     TreeError,
