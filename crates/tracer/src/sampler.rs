@@ -13,11 +13,18 @@ pub const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 16;
 pub struct PixelSampler {
     seed: u32,
     index: u32,
+    /// hash32(index), the part of every dimension's jitter hash that the stream shares.
+    index_hash: u32,
     dimension: u32,
-    /// Sobol dimensions 4·set … 4·set + 3 of this sample, computed together by
-    /// `sobol_burley::sample_4d` (identical to four `sample` calls, about 4× cheaper).
-    set: Option<(u32, [f32; 4])>,
+    /// Sobol dimensions 4·set … 4·set + 3 of this sample (`set` = [`NO_SET`] before the
+    /// first), computed together by `sobol_burley::sample_4d` (identical to four `sample`
+    /// calls, about 4× cheaper).
+    set: u32,
+    values: [f32; 4],
 }
+
+/// [`PixelSampler::set`] before any set is computed.
+const NO_SET: u32 = u32::MAX;
 
 /// One of `count` (> 0) choices, uniformly, from a uniform number `u` in [0, 1).
 #[inline]
@@ -46,11 +53,14 @@ impl PixelSampler {
                 ^ (seed as u32)
                 ^ hash32((seed >> 32) as u32),
         );
+        let index = index.min(MAX_SAMPLES_PER_PIXEL - 1);
         Self {
             seed: pixel_seed,
-            index: index.min(MAX_SAMPLES_PER_PIXEL - 1),
+            index,
+            index_hash: hash32(index),
             dimension: 0,
-            set: None,
+            set: NO_SET,
+            values: [0.0; 4],
         }
     }
 
@@ -59,19 +69,14 @@ impl PixelSampler {
     pub fn next_1d(&mut self) -> f64 {
         let d = self.dimension;
         self.dimension += 1;
-        let jitter =
-            f64::from(hash32(self.seed ^ hash32(d ^ hash32(self.index)))) / 4_294_967_296.0;
+        let jitter = f64::from(hash32(self.seed ^ hash32(d ^ self.index_hash))) / 4_294_967_296.0;
         if d < SOBOL_DIMENSIONS {
             let set = d / 4;
-            let values = match self.set {
-                Some((cached, values)) if cached == set => values,
-                _ => {
-                    let values = sobol_burley::sample_4d(self.index, set, self.seed);
-                    self.set = Some((set, values));
-                    values
-                }
-            };
-            let stratum = f64::from(values[(d % 4) as usize]);
+            if set != self.set {
+                self.values = sobol_burley::sample_4d(self.index, set, self.seed);
+                self.set = set;
+            }
+            let stratum = f64::from(self.values[(d % 4) as usize]);
             (stratum + jitter * f64::from(f32::EPSILON) * 0.5).min(1.0 - f64::EPSILON)
         } else {
             jitter
