@@ -67,7 +67,7 @@ pub enum PdfRule {
     /// The paper's quasi-Monte Carlo points ([`PdfQuadrature::QuasiMonteCarlo`]).
     QuasiMonteCarlo,
     /// The slope-space rule for a wide cone above the horizon: the lobe's mass over an ellipse,
-    /// exact along its chords ([`crate::slope_pdf`]).
+    /// exact along its chords (`slope_pdf.rs`).
     SlopeSpace,
     /// The slope-space rule for a cone across the horizon (under the default cubature, every
     /// such cone): the ellipse cut by the horizon's.

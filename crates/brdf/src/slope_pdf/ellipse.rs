@@ -1,5 +1,6 @@
-//! The slope-space rule for a cone above the horizon: the lobe's mass over an ellipse, exact
-//! along its chords.
+//! The slope-space rule: the lobe's mass over an ellipse in slope space, exact along its chords,
+//! for a cone above the horizon, and over its part inside the horizon's own ellipse for a cone
+//! across it.
 //!
 //! # Derivation
 //! **The set is an ellipse.** When the cone of radius γ around ω_o lies above the horizon
@@ -35,12 +36,23 @@
 //! ds = b·cos φ dφ analytic in φ ∈ [−π/2, π/2], with no square-root edge at the ends of the
 //! minor axis (and, unlike w = tan(φ/2), which makes them rational, no poles near the
 //! interval to slow the rule's convergence). The integral over φ takes the adaptive
-//! Gauss–Kronrod rule of [`super`]. The lobe
-//! is about 1 wide in s: the range is first cut at s* ± 2, ± 8, ± 32, … (s* the chord nearest
-//! the lobe's peak), so that each piece is about as wide as the lobe at its distance; a narrow
-//! ellipse (b ≤ 2, the usual case) is one piece of 15 chords. For Beckmann, chords whose every
-//! point is farther than √(D² + 60) from the peak, D the distance of a point known to be in the
-//! ellipse, carry under e^(−60) of the mass near that point and are left out.
+//! Gauss–Kronrod rule of [`super`]. The lobe is about 1 wide in s: the range is first cut at
+//! s* ± 2, ± 8, ± 32, … (s* the chord nearest the lobe's peak), so that each piece is about as
+//! wide as the lobe at its distance; a narrow ellipse (b ≤ 2, the usual case) starts as one
+//! piece of 15 chords. For Beckmann, chords whose every point is farther than √(D² + 60) from
+//! the peak, D the distance of a point known to be in the ellipse, carry under e^(−60) of the
+//! mass near that point and are left out.
+//!
+//! **Cut by the horizon.** For a cone across the horizon the set is the ellipse's part inside a
+//! second ellipse {G < 0}, the horizon's condition ([`super`]'s `Rays::horizon`). Both are
+//! convex, so each chord keeps one interval, between the roots of G along it. The cut set's
+//! range in s ends at a minor-axis end inside {G < 0}, at a point where {G < 0} touches a chord
+//! inside the ellipse, or where the two boundaries cross: there the chords' ends switch from
+//! one boundary to the other (a kink), and at a touching point they start with a square-root
+//! edge. The crossings are given, not searched for (two crossings a few degrees apart on a
+//! long ellipse are easily missed, and with them the whole set), and the range is cut at all
+//! these points, each piece smoothed at its ends by the substitution of [`super`]. No chord
+//! is left out: the point at distance D may lie outside the cut set.
 
 use super::{Piece, adaptive_gauss_kronrod, gauss_kronrod, smoothed_gauss_kronrod};
 use crate::distribution::DistributionKind;
