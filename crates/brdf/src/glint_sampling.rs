@@ -217,17 +217,18 @@ impl GlintSampler {
     /// model's density, by a rule over the cone where the cone is narrow against the lobe of
     /// ω′, else by the slope-space rule ([`crate::slope_pdf`]).
     pub(crate) fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
-        let (unit_wi, unit_wo) = (wi.normalize(), wo.normalize());
-        match (self.rule(wi, wo), &self.rules) {
+        if !(above_horizon(wi) && above_horizon(wo)) {
+            return 0.0;
+        }
+        let (wi, wo) = (wi.normalize(), wo.normalize());
+        match (self.unit_rule(wi, wo), &self.rules) {
             (PdfRule::None, _) => 0.0,
-            (PdfRule::SlopeSpace | PdfRule::AcrossTheHorizon, _) => {
-                self.slope_rule_pdf(unit_wi, unit_wo)
-            }
+            (PdfRule::SlopeSpace | PdfRule::AcrossTheHorizon, _) => self.slope_rule_pdf(wi, wo),
             (PdfRule::SevenPoint, ConeRules::Cubature { seven, .. }) => {
-                self.cone_rule_pdf(seven, unit_wi, unit_wo)
+                self.cone_rule_pdf(seven, wi, wo)
             }
-            (_, ConeRules::Cubature { polar, .. }) => self.cone_rule_pdf(polar, unit_wi, unit_wo),
-            (_, ConeRules::QuasiMonteCarlo(points)) => self.cone_rule_pdf(points, unit_wi, unit_wo),
+            (_, ConeRules::Cubature { polar, .. }) => self.cone_rule_pdf(polar, wi, wo),
+            (_, ConeRules::QuasiMonteCarlo(points)) => self.cone_rule_pdf(points, wi, wo),
         }
     }
 
@@ -236,7 +237,11 @@ impl GlintSampler {
         if !(above_horizon(wi) && above_horizon(wo)) {
             return PdfRule::None;
         }
-        let (wi, wo) = (wi.normalize(), wo.normalize());
+        self.unit_rule(wi.normalize(), wo.normalize())
+    }
+
+    /// [`GlintSampler::rule`] for unit directions above the horizon.
+    fn unit_rule(&self, wi: DVec3, wo: DVec3) -> PdfRule {
         let across_the_horizon = wo.z < self.sin_gamma;
         let slope_rule = if across_the_horizon {
             PdfRule::AcrossTheHorizon
