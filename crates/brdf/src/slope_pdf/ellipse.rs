@@ -152,64 +152,15 @@ impl Ellipse {
         tolerance: f64,
         max_pieces: usize,
     ) -> (f64, usize) {
-        let b = self.minor;
         let crossings: Vec<f64> = cut.map_or_else(Vec::new, |cut| {
             cut.crossings
                 .iter()
-                .map(|p| {
-                    (p[0] - self.centre[0]) * self.minor_axis[0]
-                        + (p[1] - self.centre[1]) * self.minor_axis[1]
-                })
+                .map(|p| p[0] * self.minor_axis[0] + p[1] * self.minor_axis[1] - self.centre_minor)
                 .collect()
         });
         let cut = cut.map(|cut| self.along_chords(cut.form));
-        // The chord nearest the lobe's peak (σ = 0), and the squared distance D² of a point of
-        // the ellipse: the nearer of its centre and the point of that chord nearest the peak.
-        let nearest = (-self.centre_minor).clamp(-b, b);
-        let (sigma, half) = (self.centre_minor + nearest, self.half_length(nearest));
-        let along = (self.centre_major.abs() - half).max(0.0);
-        let known = (self.centre_minor * self.centre_minor + self.centre_major * self.centre_major)
-            .min(sigma * sigma + along * along);
-        // A cut ellipse may not hold that point: no chord is left out then, but the range is
-        // that of the cut set, whose ends (it is convex) are among the minor axis' ends inside
-        // {G < 0}, the ends of {G < 0} inside the ellipse, and the boundaries' crossings (given:
-        // a search for them misses pairs close together, and with them the whole cut set).
-        let mut inner_cuts = Vec::new();
-        let (low, high) = match (&cut, kind) {
-            (Some(cut), _) => {
-                let ends = cut.extent().into_iter().filter(|&s| {
-                    let t = cut.tangent(s);
-                    s.abs() < b && t.abs() < self.half_length(s)
-                });
-                inner_cuts.extend(crossings.iter().copied().chain(ends));
-                let axis_ends = [-b, b].into_iter().filter(|&s| cut.at(s, 0.0) < 0.0);
-                let all = inner_cuts.iter().copied().chain(axis_ends);
-                (
-                    all.clone().fold(f64::INFINITY, f64::min),
-                    all.fold(f64::NEG_INFINITY, f64::max),
-                )
-            }
-            (None, DistributionKind::Beckmann) => {
-                let reach = (known + BECKMANN_REACH_SQUARED).sqrt();
-                (
-                    (-self.centre_minor - reach).max(-b),
-                    (-self.centre_minor + reach).min(b),
-                )
-            }
-            (None, DistributionKind::Ggx) => (-b, b),
-        };
-        if !(high > low) {
-            return (0.0, 0);
-        }
-        let mut cuts = vec![low, high];
-        let mut width = 2.0;
-        while nearest - width > low || nearest + width < high {
-            cuts.extend([nearest - width, nearest + width]);
-            width *= 4.0;
-        }
-        cuts.extend(inner_cuts);
-        cuts.retain(|s| *s >= low && *s <= high);
-        cuts.sort_by(f64::total_cmp);
+        let cuts = self.cuts_in_s(kind, cut.as_ref(), &crossings);
+        let b = self.minor;
         let angle = |s: f64| (s / b).clamp(-1.0, 1.0).asin();
         let integrand = |phi: f64| self.across(kind, cut.as_ref(), phi);
         // A cut's chords end where they cross the boundary of {G < 0} (kinks) or where it ends
@@ -225,6 +176,66 @@ impl Ellipse {
             .map(|(start, end)| rule(start, end - start))
             .collect();
         adaptive_gauss_kronrod(pieces, tolerance, max_pieces, rule)
+    }
+
+    /// Where the integral over s starts, ends and is first cut, sorted; empty where the set
+    /// holds no chord. The range is the ellipse's, less the Beckmann chords left out, or that of
+    /// the cut set, whose ends (it is convex) are among the minor axis' ends inside {G < 0}, the
+    /// points where {G < 0} touches a chord inside the ellipse, and the boundaries' `crossings`
+    /// (given: a search for them misses pairs close together, and with them the whole cut set).
+    /// Inside it, cuts at s* ± 2, ± 8, … and at those points.
+    fn cuts_in_s(
+        &self,
+        kind: DistributionKind,
+        cut: Option<&ChordForm>,
+        crossings: &[f64],
+    ) -> Vec<f64> {
+        let b = self.minor;
+        let nearest = (-self.centre_minor).clamp(-b, b);
+        let mut inner = Vec::new();
+        let (low, high) = match (cut, kind) {
+            (Some(cut), _) => {
+                let touching = cut
+                    .extent()
+                    .into_iter()
+                    .filter(|&s| s.abs() < b && cut.tangent(s).abs() < self.half_length(s));
+                inner.extend(crossings.iter().copied().chain(touching));
+                let axis_ends = [-b, b].into_iter().filter(|&s| cut.at(s, 0.0) < 0.0);
+                let all = inner.iter().copied().chain(axis_ends);
+                (
+                    all.clone().fold(f64::INFINITY, f64::min),
+                    all.fold(f64::NEG_INFINITY, f64::max),
+                )
+            }
+            (None, DistributionKind::Beckmann) => {
+                // D²: the nearer to the peak of the centre and the point nearest the peak on
+                // the chord nearest it.
+                let sigma = self.centre_minor + nearest;
+                let along = (self.centre_major.abs() - self.half_length(nearest)).max(0.0);
+                let known = (self.centre_minor * self.centre_minor
+                    + self.centre_major * self.centre_major)
+                    .min(sigma * sigma + along * along);
+                let reach = (known + BECKMANN_REACH_SQUARED).sqrt();
+                (
+                    (-self.centre_minor - reach).max(-b),
+                    (-self.centre_minor + reach).min(b),
+                )
+            }
+            (None, DistributionKind::Ggx) => (-b, b),
+        };
+        if !(high > low) {
+            return Vec::new();
+        }
+        let mut cuts = vec![low, high];
+        let mut width = 2.0;
+        while nearest - width > low || nearest + width < high {
+            cuts.extend([nearest - width, nearest + width]);
+            width *= 4.0;
+        }
+        cuts.extend(inner);
+        cuts.retain(|s| *s >= low && *s <= high);
+        cuts.sort_by(f64::total_cmp);
+        cuts
     }
 
     /// G along the chords, in the ellipse's frame: at p = c + s·m̂ + t·M̂,
