@@ -21,12 +21,12 @@ import warnings
 
 import numpy as np
 
+from ._glint import DISTRIBUTIONS, __version__
 from ._glint import Material as _NativeMaterial
-from ._glint import __version__
 from ._render import render, write_exr, write_png
 from .units import mesh_areas, particles_per_square
 
-__all__ = ["Material", "__version__", "mesh_areas", "particles_per_square", "render",
+__all__ = ["DISTRIBUTIONS", "Material", "__version__", "mesh_areas", "particles_per_square", "render",
            "write_exr", "write_png"]
 
 
@@ -114,7 +114,7 @@ class Material:
     """A glint material, built once (a few ms) and reused for any number of queries.
 
     Parameters have the names, defaults, meaning and ranges of ``docs/eval.md``'s material
-    fields: ``distribution`` ("beckmann" or "ggx"), roughness ``alpha`` and ``alpha_y`` in
+    fields: ``distribution`` (a name in ``glint.DISTRIBUTIONS``: "beckmann", "ggx"), roughness ``alpha`` and ``alpha_y`` in
     [1e-4, 1] (None: the same as ``alpha``), ``particles`` N per unit texture square (a whole
     number in [1, 2^53]), ``gamma_degrees`` the cone radius γ in degrees ([5.73e-5, 60], 1 by
     default; ``gamma_deg``, its older name, still works, deprecated),

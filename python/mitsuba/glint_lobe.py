@@ -110,6 +110,101 @@ def split_uniform(u):
             mi.Float64(_compact_even_bits(bits)) * scale)
 
 
+def _scaled_slope2(m, alpha):
+    """(x²/α_x² + y²/α_y²)/z² for m = (x, y, z): the squared scaled slope of radial kinds."""
+    ax, ay = alpha
+    return (dr.square(m.x) / (ax * ax) + dr.square(m.y) / (ay * ay)) / dr.square(m.z)
+
+
+def _normal_from_scaled_slope(radius, u1, alpha):
+    """normalize(−s_x, −s_y, 1) for the slopes (α_x ρ cos φ, α_y ρ sin φ), φ = 2πu1."""
+    sin_phi, cos_phi = dr.sincos(2.0 * math.pi * u1)
+    ax, ay = alpha
+    return dr.normalize(mi.Vector3d(-ax * radius * cos_phi, -ay * radius * sin_phi, 1.0))
+
+
+class BeckmannPort:
+    """Beckmann (``crates/brdf/src/distribution/beckmann.rs``)."""
+
+    @staticmethod
+    def d(m, alpha):
+        """D(m) for unit m with m.z > 0."""
+        ax, ay = alpha
+        z2 = dr.square(m.z)
+        slope2 = _scaled_slope2(m, alpha)
+        return dr.exp(-slope2) / (math.pi * ax * ay * z2 * z2)
+
+    @staticmethod
+    def lambda_(w, alpha):
+        """Smith's Λ(ω) for unit ω above the horizon (0 along the normal)."""
+        ax, ay = alpha
+        projected2 = dr.square(ax * w.x) + dr.square(ay * w.y)
+        a = w.z * dr.rsqrt(projected2)
+        value = 0.5 * (dr.erf(a) - 1.0) + dr.exp(-a * a) / (2.0 * a * _SQRT_PI)
+        # erf(a) = 1 and exp(−a²) < 3e-16 beyond a = 6: Λ is 0 to double precision.
+        return dr.select((projected2 == 0.0) | (dr.square(w.z) > 36.0 * projected2),
+                         0.0, value)
+
+    @staticmethod
+    def density_bound(t_near, t_far, alpha):
+        """The bound on D(m)(m·n) over tan²θ in [t_near, t_far]: unimodal in t, peaking at
+        t* = 3α²/2 − 1, α the larger roughness."""
+        ax, ay = alpha
+        alpha2 = max(ax, ay) ** 2
+        t = dr.minimum(dr.maximum(1.5 * alpha2 - 1.0, t_near), t_far)
+        rise = (1.0 + t) * dr.sqrt(1.0 + t)
+        return rise * dr.exp(-t / alpha2) / (math.pi * ax * ay)
+
+    @staticmethod
+    def sample_normal(u0, u1, alpha):
+        """A normal from D(m)(m·n): Gaussian slopes."""
+        u0 = dr.minimum(u0, 1.0 - 2.0 ** -52)
+        radius = dr.sqrt(-dr.log(1.0 - u0))
+        return _normal_from_scaled_slope(radius, u1, alpha)
+
+
+class GgxPort:
+    """GGX (``crates/brdf/src/distribution/ggx.rs``)."""
+
+    @staticmethod
+    def d(m, alpha):
+        """D(m) for unit m with m.z > 0."""
+        ax, ay = alpha
+        z2 = dr.square(m.z)
+        slope2 = _scaled_slope2(m, alpha)
+        return dr.rcp(math.pi * ax * ay * z2 * z2 * dr.square(1.0 + slope2))
+
+    @staticmethod
+    def lambda_(w, alpha):
+        """Smith's Λ(ω) for unit ω above the horizon (0 along the normal)."""
+        ax, ay = alpha
+        projected2 = dr.square(ax * w.x) + dr.square(ay * w.y)
+        return dr.select(projected2 == 0.0, 0.0,
+                         0.5 * (dr.sqrt(1.0 + projected2 / dr.square(w.z)) - 1.0))
+
+    @staticmethod
+    def density_bound(t_near, t_far, alpha):
+        """The bound on D(m)(m·n) over tan²θ in [t_near, t_far]: unimodal in t, peaking at
+        t* = 3α² − 4, α the larger roughness."""
+        ax, ay = alpha
+        alpha2 = max(ax, ay) ** 2
+        t = dr.minimum(dr.maximum(3.0 * alpha2 - 4.0, t_near), t_far)
+        rise = (1.0 + t) * dr.sqrt(1.0 + t)
+        return rise / (dr.square(1.0 + t / alpha2) * (math.pi * ax * ay))
+
+    @staticmethod
+    def sample_normal(u0, u1, alpha):
+        """A normal from D(m)(m·n): the bivariate Student-like P22 slopes."""
+        u0 = dr.minimum(u0, 1.0 - 2.0 ** -52)
+        radius = dr.sqrt(u0 / (1.0 - u0))
+        return _normal_from_scaled_slope(radius, u1, alpha)
+
+
+#: The Dr.Jit port of each of the package's distributions, by name. A test checks that every
+#: name in ``glint.DISTRIBUTIONS`` has one, and each against the package.
+PORTS = {"beckmann": BeckmannPort, "ggx": GgxPort}
+
+
 class Lobe:
     """The smooth lobe and the glint sampler of a uniform glint material (no maps, F = 1,
     cubature pdf), built from ``glint.Material``'s specification (``Material._spec``).
@@ -123,7 +218,11 @@ class Lobe:
                              f"pdf_quadrature = {spec['pdf_quadrature']!r}")
         if spec.get("fresnel", "none") not in ("none", None):
             raise ValueError("the Dr.Jit lobe implements F = 1 only")
-        self.beckmann = {"beckmann": True, "ggx": False}[spec["distribution"]]
+        name = spec["distribution"]
+        if name not in PORTS:
+            raise ValueError(f"the Dr.Jit lobe has no port of distribution {name!r}: it has "
+                             f"{', '.join(PORTS)}")
+        self.kind = PORTS[name]
         alpha = float(spec["alpha"])
         alpha_y = float(spec.get("alpha_y") or alpha)
         self.alpha = (alpha, alpha_y)
@@ -143,26 +242,11 @@ class Lobe:
 
     def _d(self, m, alpha):
         """D(m) for unit m (0 below the horizon)."""
-        ax, ay = alpha
-        z2 = dr.square(m.z)
-        slope2 = (dr.square(m.x) / (ax * ax) + dr.square(m.y) / (ay * ay)) / z2
-        normalization = math.pi * ax * ay * z2 * z2
-        d = (dr.exp(-slope2) / normalization if self.beckmann
-             else dr.rcp(normalization * dr.square(1.0 + slope2)))
-        return dr.select(m.z > 0.0, d, 0.0)
+        return dr.select(m.z > 0.0, self.kind.d(m, alpha), 0.0)
 
     def _lambda(self, w):
         """Smith's Λ(ω) of the material's roughness for unit ω above the horizon."""
-        ax, ay = self.alpha
-        projected2 = dr.square(ax * w.x) + dr.square(ay * w.y)
-        if self.beckmann:
-            a = w.z * dr.rsqrt(projected2)
-            value = 0.5 * (dr.erf(a) - 1.0) + dr.exp(-a * a) / (2.0 * a * _SQRT_PI)
-            # erf(a) = 1 and exp(−a²) < 3e-16 beyond a = 6: Λ is 0 to double precision.
-            return dr.select((projected2 == 0.0) | (dr.square(w.z) > 36.0 * projected2),
-                             0.0, value)
-        return dr.select(projected2 == 0.0, 0.0,
-                         0.5 * (dr.sqrt(1.0 + projected2 / dr.square(w.z)) - 1.0))
+        return self.kind.lambda_(w, self.alpha)
 
     def _reflected_density(self, wi, w, alpha):
         """The density of the mirror direction ω′ = w when the facet normal is drawn from
@@ -175,21 +259,13 @@ class Lobe:
     def _particle_density_bound(self, cos_near, cos_far):
         """The bound on D(m)(m·n) between the polar angles of cosines ``cos_near`` ≥
         ``cos_far`` (the package's ``Microfacet::particle_density_bound``): each density is
-        unimodal in t = tan²θ, peaking at t* = 3α²/2 − 1 (Beckmann) or 3α² − 4 (GGX), α the
-        larger roughness, so the bound is its value at t* clamped to the interval."""
+        each kind bounds it on the interval of t = tan²θ."""
         def tan2(c):
             return dr.select(c <= 0.0, math.inf, dr.maximum(1.0 - c * c, 0.0) / (c * c))
 
         t_near, t_far = tan2(dr.minimum(cos_near, 1.0)), tan2(cos_far)
-        ax, ay = self.alpha
-        alpha2 = max(ax, ay) ** 2
-        t_peak = 1.5 * alpha2 - 1.0 if self.beckmann else 3.0 * alpha2 - 4.0
-        t = dr.minimum(dr.maximum(t_peak, t_near), dr.maximum(t_far, t_near))
-        normalization = math.pi * ax * ay
-        rise = (1.0 + t) * dr.sqrt(1.0 + t)
-        value = (rise * dr.exp(-t / alpha2) / normalization if self.beckmann
-                 else rise / (dr.square(1.0 + t / alpha2) * normalization))
-        return dr.select(dr.isfinite(t), value, 0.0)
+        value = self.kind.density_bound(t_near, dr.maximum(t_far, t_near), self.alpha)
+        return dr.select(dr.isfinite(t_near), value, 0.0)
 
     def negligible_bound(self, wi, wo, duv_dx, duv_dy):
         """λ̄ of the package's negligible-query test (``Material.negligible_test``) for
@@ -248,13 +324,8 @@ class Lobe:
         """The sampler's direction for three uniforms (``mi.Float64``): (ω_o, valid)."""
         wi = dr.normalize(wi)
         c0, c1 = split_uniform(u2)
-        # A normal from D(m)(m·n), widened: Gaussian (Beckmann) or P22 (GGX) slopes.
-        u0 = dr.minimum(u0, 1.0 - 2.0 ** -52)
-        radius = (dr.sqrt(-dr.log(1.0 - u0)) if self.beckmann
-                  else dr.sqrt(u0 / (1.0 - u0)))
-        sin_phi, cos_phi = dr.sincos(2.0 * math.pi * u1)
-        ax, ay = self.widened
-        m = dr.normalize(mi.Vector3d(-ax * radius * cos_phi, -ay * radius * sin_phi, 1.0))
+        # A normal from D(m)(m·n), widened.
+        m = self.kind.sample_normal(u0, u1, self.widened)
         cos_m = dr.dot(wi, m)
         centre = 2.0 * cos_m * m - wi
         # ω_o uniform in the cap of 1 − cos θ ≤ versine around ω′.

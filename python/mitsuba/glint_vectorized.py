@@ -207,7 +207,7 @@ def register():
            * - distribution
              - string
              - beckmann
-             - ``beckmann`` or ``ggx``
+             - a name in ``glint.DISTRIBUTIONS`` (``beckmann``, ``ggx``)
            * - alpha, alpha_y
              - float
              - 0.1, = alpha

@@ -20,12 +20,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::Duration;
 
-use glint_brdf::{DVec3, QueryScratch};
+use glint_brdf::{DVec3, DistributionKind, QueryScratch};
 use glint_eval::{EvalColumns, EvalMaterial, EvalRow, MapSpec, MaterialSpec, uniforms_from_three};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple};
 
 mod render;
 
@@ -474,5 +474,11 @@ fn _glint(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_class::<Material>()?;
     render::register(module)?;
     module.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // The names of glint-brdf's table of kinds, in its order.
+    let distributions: Vec<&str> = DistributionKind::ALL
+        .iter()
+        .map(|kind| kind.name())
+        .collect();
+    module.add("DISTRIBUTIONS", PyTuple::new(module.py(), distributions)?)?;
     Ok(())
 }

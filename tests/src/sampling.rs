@@ -120,12 +120,13 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
     let angles = [0.0, 45f64.to_radians(), 85f64.to_radians()];
     let roughness = [(0.2, 0.2), (0.6, 0.6), (0.15, 0.5)];
     let mut cases = Vec::new();
-    for (kind, sampling) in [
-        (DistributionKind::Beckmann, NormalSampling::Distribution),
-        (DistributionKind::Ggx, NormalSampling::Distribution),
-        (DistributionKind::Beckmann, NormalSampling::Visible),
-        (DistributionKind::Ggx, NormalSampling::Visible),
-    ] {
+    // Every kind sampled from p, and from its visible normals where it has them.
+    let samplings = [NormalSampling::Distribution, NormalSampling::Visible];
+    for (sampling, kind) in samplings
+        .into_iter()
+        .flat_map(|s| DistributionKind::ALL.map(|kind| (s, kind)))
+        .filter(|&(s, kind)| s == NormalSampling::Distribution || kind.samples_visible_normals())
+    {
         for (ax, ay) in roughness {
             let d = Microfacet::new(kind, ax, ay).expect("valid roughness");
             for &theta_i in &angles {
@@ -142,7 +143,7 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
             }
         }
     }
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+    for kind in DistributionKind::ALL {
         for &theta_i in &angles {
             let mut parameters =
                 GlintParameters::new(Microfacet::new(kind, 0.15, 0.15).expect("valid roughness"));

@@ -14,7 +14,7 @@ use glint_tests::sampling::{hemisphere_integral, sampler_cases, sidak, test_samp
 
 fn distributions() -> Vec<Microfacet> {
     let mut all = Vec::new();
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+    for kind in DistributionKind::ALL {
         for (ax, ay) in [(0.1, 0.1), (0.5, 0.5), (0.1, 0.4), (1.0, 1.0)] {
             all.push(Microfacet::new(kind, ax, ay).unwrap());
         }
@@ -401,7 +401,7 @@ fn the_bound_bxdf_is_the_glint_model() {
 fn particle_density_bound_holds_and_is_attained() {
     let mut rng = SplitMix64::new(17);
     let mut all = distributions();
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+    for kind in DistributionKind::ALL {
         for (ax, ay) in [(1e-4, 1e-4), (1e-4, 1.0), (0.01, 0.01), (0.9, 0.7)] {
             all.push(Microfacet::new(kind, ax, ay).unwrap());
         }
@@ -460,7 +460,7 @@ fn expected_count_bound_bounds_the_expected_count() {
     let mut rng = SplitMix64::new(23);
     let mut tightest: f64 = 0.0;
     let mut scratch = QueryScratch::new();
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+    for kind in DistributionKind::ALL {
         for (ax, ay, gamma_deg) in [
             (0.1, 0.1, 0.5),
             (0.01, 0.01, 1.0),
@@ -552,7 +552,7 @@ fn directional_law_excess_is_its_definition() {
     use glint_tree::DirectionalCell;
     let leaf_chord = 2.0 * (0.5 * glint_tree::LEAF_CELL_ARC).sin();
     let (mut figures, mut beckmann_03) = (Vec::new(), 0.0);
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+    for kind in DistributionKind::ALL {
         for (ax, ay) in [(0.01, 0.01), (0.1, 0.1), (0.1, 0.4), (0.3, 0.3), (1.0, 1.0)] {
             let d = Microfacet::new(kind, ax, ay).unwrap();
             let brdf = DiscreteBrdf::new(GlintParameters::new(d)).unwrap();

@@ -63,7 +63,7 @@ pub(crate) fn energy(report: &mut String) -> anyhow::Result<Check> {
          | distribution | α | largest albedo | at θ_i |\n|---|---|---|---|"
     )?;
     let mut worst = 0.0_f64;
-    for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+    for kind in DistributionKind::ALL {
         for alpha in [0.01, 0.1, 0.3, 0.6, 1.0] {
             let brdf = MicrofacetBrdf::new(
                 Microfacet::new(kind, alpha, alpha)?,

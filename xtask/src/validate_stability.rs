@@ -19,8 +19,6 @@ use glint_brdf::{
 
 use crate::validate::{Check, parallel_chunks};
 
-const KINDS: [DistributionKind; 2] = [DistributionKind::Beckmann, DistributionKind::Ggx];
-
 fn alphas(quick: bool) -> Vec<(f64, f64)> {
     if quick {
         vec![(1e-4, 1e-4), (0.3, 0.3), (1e-4, 1.0)]
@@ -292,7 +290,7 @@ fn check_material(
 
 pub(crate) fn stability(quick: bool, report: &mut String) -> anyhow::Result<Check> {
     let mut materials = vec![];
-    for kind in KINDS {
+    for kind in DistributionKind::ALL {
         for alpha in alphas(quick) {
             for gamma in gammas(quick) {
                 for particles in particle_counts(quick) {

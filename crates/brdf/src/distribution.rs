@@ -1,38 +1,200 @@
-//! Microfacet distributions: Beckmann and GGX, isotropic and anisotropic (α_x, α_y).
+//! Microfacet distributions: one table of kinds, one file per kind.
 //!
-//! All directions are in the local shading frame (n = +z). For a unit normal m with
-//! slopes (x/z, y/z):
+//! A kind is a [`Model`] in a file of its own ([`beckmann`], [`ggx`])
+//! and a row of [`DistributionKind`]'s table ([`DistributionKind::ALL`], its name, and the line
+//! of [`with_model!`] that maps it to its model). Everything else takes the kinds from there:
+//! eval's and the scene files' names, C's constants (checked against the table by a test),
+//! Python, the tests' and `validate`'s loops. Adding a kind is described in
+//! `ARCHITECTURE.md` ("Adding a distribution").
 //!
-//! ```text
-//!   Beckmann:  D(m) = exp(−(x²/α_x² + y²/α_y²)/z²) / (π α_x α_y z⁴)
-//!   GGX:       D(m) = 1 / (π α_x α_y z⁴ (1 + (x²/α_x² + y²/α_y²)/z²)²)
-//! ```
+//! All directions are in the local shading frame (n = +z); (α_x, α_y) are the roughnesses
+//! along x and y. Every kind keeps the contract below, which the tests of this module and of
+//! `tests/tests/brdf.rs` check for each row of the table:
 //!
-//! Both satisfy ∫ D(m)(m·n) dm = 1 over the hemisphere: p(m) = D(m)(m·n) is the density of
-//! particle normals the count tree uses ([`Microfacet::particle_density`]).
-//!
-//! Smith's Λ for a direction ω with a = 1/(α_ω tan θ) and α_ω² = cos²φ α_x² + sin²φ α_y², i.e.
-//! a = z / √(α_x² x² + α_y² y²):
-//!
-//! ```text
-//!   Beckmann:  Λ = (erf(a) − 1)/2 + exp(−a²)/(2a√π)
-//!   GGX:       Λ = (−1 + √(1 + 1/a²))/2
-//! ```
+//! - p(m) = D(m)(m·n) integrates to 1 over the hemisphere: it is the density of particle
+//!   normals the count tree uses ([`Microfacet::particle_density`]);
+//! - p reads m_x and m_y only through their squares (a half turn about n leaves it unchanged
+//!   bit for bit), and with α_x = α_y it treats them alike (a quarter turn too): the count
+//!   tree's law excess walks one octant or two on that promise;
+//! - Λ is Smith's for this D: (1 + Λ(ω)) cos θ = ∫ D(m) max(0, ω·m) dm;
+//! - [`Microfacet::sample_normal`] draws from p, and the particle density bound holds.
 //!
 //! G1(ω, m) = χ⁺(ω·m)/(1 + Λ(ω)); G(ω_i, ω_o, m) is the height-correlated form
-//! χ⁺(ω_i·m)χ⁺(ω_o·m)/(1 + Λ(ω_i) + Λ(ω_o)) (Heitz 2014), exact for these distributions.
+//! χ⁺(ω_i·m)χ⁺(ω_o·m)/(1 + Λ(ω_i) + Λ(ω_o)) (Heitz 2014).
+
+mod beckmann;
+mod ggx;
 
 use glam::DVec3;
 
 use crate::error::BrdfError;
 
-/// Which microfacet distribution.
+/// Which microfacet distribution: the table of kinds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum DistributionKind {
     /// Beckmann (Gaussian slopes).
     Beckmann,
     /// GGX / Trowbridge–Reitz.
     Ggx,
+}
+
+/// Calls `$body` with `$model` standing for the [`Model`] of `$kind`: the one place that maps a
+/// kind to its implementation.
+macro_rules! with_model {
+    ($kind:expr, $model:ident => $body:expr) => {
+        match $kind {
+            DistributionKind::Beckmann => {
+                type $model = beckmann::Beckmann;
+                $body
+            }
+            DistributionKind::Ggx => {
+                type $model = ggx::Ggx;
+                $body
+            }
+        }
+    };
+}
+
+impl DistributionKind {
+    /// Every kind, in the order of C's `GlintDistribution` constants (a kind's constant is its
+    /// index here).
+    pub const ALL: [DistributionKind; 2] = [DistributionKind::Beckmann, DistributionKind::Ggx];
+
+    /// The kind's name in scene files, eval, Python and the Mitsuba plugins.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            DistributionKind::Beckmann => "beckmann",
+            DistributionKind::Ggx => "ggx",
+        }
+    }
+
+    /// The kind named `name` ([`DistributionKind::name`]), if any.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|kind| kind.name() == name)
+    }
+
+    /// The kind whose C constant is `code` (its index in [`DistributionKind::ALL`]), if any.
+    #[must_use]
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.get(usize::try_from(code).ok()?).copied()
+    }
+
+    /// The kind's C constant: its index in [`DistributionKind::ALL`].
+    #[must_use]
+    pub fn code(self) -> u32 {
+        Self::ALL
+            .iter()
+            .position(|kind| *kind == self)
+            .and_then(|index| u32::try_from(index).ok())
+            .unwrap_or(u32::MAX)
+    }
+
+    /// The names of all kinds, for error messages: "beckmann, ggx".
+    #[must_use]
+    pub fn names() -> String {
+        Self::ALL.map(Self::name).join(", ")
+    }
+
+    /// Whether [`NormalSampling::Visible`] is available for this kind.
+    #[must_use]
+    pub fn samples_visible_normals(self) -> bool {
+        with_model!(self, M => M::SAMPLES_VISIBLE_NORMALS)
+    }
+
+    /// The radial law of the kind's scaled slopes, if it has one.
+    pub(crate) fn radial_law(self) -> Option<RadialLaw> {
+        with_model!(self, M => M::RADIAL)
+    }
+}
+
+impl std::fmt::Display for DistributionKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A lobe that is radial in scaled slopes (x/α_x, y/α_y), with density P(ρ) in the scaled
+/// radius ρ: the glint sampler's slope-space pdf integrates its chords in closed form
+/// (`slope_pdf/ellipse.rs`) and its rays by the tail T(ρ) = 2π∫_ρ^∞ P(r) r dr.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum RadialLaw {
+    /// P(ρ) = e^(−ρ²)/π, T(ρ) = e^(−ρ²) (Beckmann).
+    Gaussian,
+    /// P(ρ) = 1/(π(1 + ρ²)²), T(ρ) = 1/(1 + ρ²) (GGX).
+    Student,
+}
+
+/// What a microfacet distribution implements, in terms of its roughness (α_x, α_y). Arguments
+/// are checked by [`Microfacet`] first: unit vectors above the horizon, and for Λ a direction
+/// off the normal. See the module's contract.
+pub(crate) trait Model {
+    /// Its radial law in scaled slopes, for the slope-space pdf's closed forms; `None` takes
+    /// [`Model::ray_mass`] along rays instead.
+    const RADIAL: Option<RadialLaw>;
+    /// Whether [`Model::sample_visible_normal`] is implemented.
+    const SAMPLES_VISIBLE_NORMALS: bool;
+
+    /// D(m) for a unit normal m with m_z > 0.
+    fn d(alpha: (f64, f64), m: DVec3) -> f64;
+
+    /// D(h)/|H|⁴ for h = H/|H|, H with H_z > 0 of any length.
+    fn d_of_half_vector(alpha: (f64, f64), half: DVec3) -> f64 {
+        let length2 = half.length_squared();
+        Self::d(alpha, half / length2.sqrt()) / (length2 * length2)
+    }
+
+    /// Smith's Λ(ω) for a unit ω with ω_z > 0, off the normal.
+    fn lambda(alpha: (f64, f64), w: DVec3) -> f64;
+
+    /// An upper bound on p(m) = D(m)(m·n) over the unit normals with tan²θ in
+    /// [t_near, t_far] (t_near ≤ t_far, t_far may be +∞).
+    fn particle_density_bound(alpha: (f64, f64), t_near: f64, t_far: f64) -> f64;
+
+    /// A normal drawn from p(m) = D(m)(m·n), from two uniforms.
+    fn sample_normal(alpha: (f64, f64), u: [f64; 2]) -> DVec3;
+
+    /// A normal drawn from the visible normals seen from ω_i, whose density is
+    /// G1(ω_i, m)·max(0, ω_i·m)·D(m)/ω_i.z. Only called where
+    /// [`Model::SAMPLES_VISIBLE_NORMALS`]; the default draws from p.
+    fn sample_visible_normal(alpha: (f64, f64), _wi: DVec3, u: [f64; 2]) -> DVec3 {
+        Self::sample_normal(alpha, u)
+    }
+
+    /// 2π times the mass of p per unit ψ along the ray H = (α_x ρ cos ψ, α_y ρ sin ψ, 1) of
+    /// scaled slopes for ρ in [a, b] (a ≤ b, b may be +∞), from the ray's direction
+    /// (cos ψ, sin ψ): for a radial law, T(a) − T(b) whatever the direction (the default).
+    fn ray_mass(_alpha: (f64, f64), _direction: (f64, f64), a: f64, b: f64) -> f64 {
+        match Self::RADIAL {
+            Some(law) => law.tail_difference(a, b),
+            None => unreachable!("a kind without a radial law implements its ray mass"),
+        }
+    }
+}
+
+impl RadialLaw {
+    /// T(a) − T(b) for a ≤ b, without cancellation when they are close.
+    pub(crate) fn tail_difference(self, a: f64, b: f64) -> f64 {
+        match self {
+            // e^(−a²) − e^(−b²) = e^(−a²)(1 − e^(−(b − a)(b + a))).
+            RadialLaw::Gaussian => {
+                if b.is_infinite() {
+                    (-a * a).exp()
+                } else {
+                    -(-a * a).exp() * (-(b - a) * (b + a)).exp_m1()
+                }
+            }
+            // 1/(1 + a²) − 1/(1 + b²) = (b − a)(b + a)/((1 + a²)(1 + b²)).
+            RadialLaw::Student => {
+                if b.is_infinite() {
+                    1.0 / (1.0 + a * a)
+                } else {
+                    (b - a) * (b + a) / ((1.0 + a * a) * (1.0 + b * b))
+                }
+            }
+        }
+    }
 }
 
 /// How normals are sampled.
@@ -42,7 +204,8 @@ pub enum NormalSampling {
     #[default]
     Distribution,
     /// From the distribution of normals visible from ω_i (Heitz 2018 for GGX, Heitz and
-    /// d'Eon 2014 for Beckmann).
+    /// d'Eon 2014 for Beckmann); kinds without it refuse it
+    /// ([`DistributionKind::samples_visible_normals`]).
     Visible,
 }
 
@@ -104,21 +267,13 @@ impl Microfacet {
         if m.z <= 0.0 {
             return 0.0;
         }
-        let z2 = m.z * m.z;
-        let slope2 = (m.x * m.x / (self.alpha_x * self.alpha_x)
-            + m.y * m.y / (self.alpha_y * self.alpha_y))
-            / z2;
-        let normalization = std::f64::consts::PI * self.alpha_x * self.alpha_y * z2 * z2;
-        match self.kind {
-            DistributionKind::Beckmann => (-slope2).exp() / normalization,
-            DistributionKind::Ggx => 1.0 / (normalization * (1.0 + slope2) * (1.0 + slope2)),
-        }
+        with_model!(self.kind, M => M::d(self.alpha(), m))
     }
 
     /// D(h)(h·n)/(4 ω_i·h), the density of ω_o = reflect(ω_i, h) for normals h drawn from
     /// D(h)(h·n), from the unnormalized half vector H = ω_i + ω_o (0 unless H.z > 0 and
-    /// ω_i·H > 0). No square root: [`Microfacet::d`] of H is D(h)/|H|⁴ (its slope term depends
-    /// on H's direction only, its normalization on H_z⁴), and (h·n)/(ω_i·h) = H_z/(ω_i·H).
+    /// ω_i·H > 0). With D(h)/|H|⁴ from the kind ([`Model::d_of_half_vector`], no square root
+    /// for kinds whose formula is homogeneous) and (h·n)/(ω_i·h) = H_z/(ω_i·H).
     #[inline]
     #[must_use]
     pub fn reflected_density(&self, wi: DVec3, half: DVec3) -> f64 {
@@ -127,7 +282,8 @@ impl Microfacet {
             return 0.0;
         }
         let length2 = half.length_squared();
-        self.d(half) * length2 * length2 * half.z / (4.0 * cos)
+        let d = with_model!(self.kind, M => M::d_of_half_vector(self.alpha(), half));
+        d * length2 * length2 * half.z / (4.0 * cos)
     }
 
     /// p(m) = D(m)(m·n): the density of particle normals, which integrates to 1.
@@ -138,20 +294,8 @@ impl Microfacet {
 
     /// An upper bound on p(m) = D(m)(m·n) over the unit normals whose angle θ from n lies
     /// between the angles of `cos_near` and `cos_far` (cos_near ≥ cos_far; cos_far ≤ 0 reaches
-    /// the horizon). For the negligible-query test of [`crate::DiscreteBrdf`].
-    ///
-    /// With t = tan²θ and α_m = max(α_x, α_y), the slope term obeys
-    /// (x²/α_x² + y²/α_y²)/z² ≥ t/α_m², so for both distributions
-    ///
-    /// ```text
-    ///   Beckmann:  p ≤ P(t) = (1 + t)^{3/2} e^{−t/α_m²}      / (π α_x α_y)
-    ///   GGX:       p ≤ P(t) = (1 + t)^{3/2} / (1 + t/α_m²)²  / (π α_x α_y)
-    /// ```
-    ///
-    /// using z⁻³ = (1 + t)^{3/2}. Each P is unimodal in t: d ln P/dt is 3/(2(1 + t)) − 1/α_m²
-    /// (Beckmann) or 3/(2(1 + t)) − 2/(α_m² + t) (GGX), which changes sign once, at
-    /// t* = 3α_m²/2 − 1 and t* = 3α_m² − 4 respectively (t* ≤ 0 means P decreases from the
-    /// normal on). The maximum over [t_near, t_far] is therefore P(clamp(t*, t_near, t_far)).
+    /// the horizon). For the negligible-query test of [`crate::DiscreteBrdf`]. Each kind bounds
+    /// p on tan²θ in [t_near, t_far] ([`Model::particle_density_bound`]).
     #[must_use]
     pub fn particle_density_bound(&self, cos_near: f64, cos_far: f64) -> f64 {
         let tan2 = |c: f64| {
@@ -162,24 +306,10 @@ impl Microfacet {
             }
         };
         let (t_near, t_far) = (tan2(cos_near.min(1.0)), tan2(cos_far));
-        let alpha2 = self.alpha_x.max(self.alpha_y).powi(2);
-        let t_peak = match self.kind {
-            DistributionKind::Beckmann => 1.5 * alpha2 - 1.0,
-            DistributionKind::Ggx => 3.0 * alpha2 - 4.0,
-        };
-        let t = t_peak.clamp(t_near, t_far.max(t_near));
-        if !t.is_finite() {
+        if !t_near.is_finite() {
             return 0.0;
         }
-        let normalization = std::f64::consts::PI * self.alpha_x * self.alpha_y;
-        let rise = (1.0 + t) * (1.0 + t).sqrt();
-        match self.kind {
-            DistributionKind::Beckmann => rise * (-t / alpha2).exp() / normalization,
-            DistributionKind::Ggx => {
-                let fall = 1.0 + t / alpha2;
-                rise / (fall * fall * normalization)
-            }
-        }
+        with_model!(self.kind, M => M::particle_density_bound(self.alpha(), t_near, t_far.max(t_near)))
     }
 
     /// Smith's Λ(ω) for a unit direction ω above the horizon.
@@ -188,24 +318,10 @@ impl Microfacet {
         if w.z <= 0.0 {
             return f64::INFINITY;
         }
-        // a = cos θ / (α(φ) sin θ) = w.z / √projected².
-        let projected_squared = (self.alpha_x * w.x).powi(2) + (self.alpha_y * w.y).powi(2);
-        if projected_squared == 0.0 {
+        if w.x == 0.0 && w.y == 0.0 {
             return 0.0;
         }
-        match self.kind {
-            DistributionKind::Beckmann => {
-                // For a > 6, erf(a) = 1 and exp(−a²) < 3e-16: Λ is 0 to double precision
-                // (tested without the square root: a² > 36).
-                if w.z * w.z > 36.0 * projected_squared {
-                    return 0.0;
-                }
-                let a = w.z / projected_squared.sqrt();
-                0.5 * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * a * std::f64::consts::PI.sqrt())
-            }
-            // 1/a² = projected²/w.z².
-            DistributionKind::Ggx => 0.5 * ((1.0 + projected_squared / (w.z * w.z)).sqrt() - 1.0),
-        }
+        with_model!(self.kind, M => M::lambda(self.alpha(), w))
     }
 
     /// G1(ω, m) = χ⁺(ω·m)/(1 + Λ(ω)).
@@ -226,20 +342,10 @@ impl Microfacet {
         1.0 / (1.0 + self.lambda(wi) + self.lambda(wo))
     }
 
-    /// A normal drawn from p(m) = D(m)(m·n), from two uniforms: the slopes are drawn from
-    /// their distribution (Gaussian for Beckmann, the bivariate Student-like P22 for GGX),
-    /// stretched by (α_x, α_y), and m = normalize(−s_x, −s_y, 1).
+    /// A normal drawn from p(m) = D(m)(m·n), from two uniforms (each kind's file says how).
     #[must_use]
     pub fn sample_normal(&self, u: [f64; 2]) -> DVec3 {
-        let u0 = u[0].min(1.0 - f64::EPSILON);
-        let radius = match self.kind {
-            DistributionKind::Beckmann => (-(1.0 - u0).ln()).sqrt(),
-            DistributionKind::Ggx => (u0 / (1.0 - u0)).sqrt(),
-        };
-        let phi = 2.0 * std::f64::consts::PI * u[1];
-        let slope_x = self.alpha_x * radius * phi.cos();
-        let slope_y = self.alpha_y * radius * phi.sin();
-        DVec3::new(-slope_x, -slope_y, 1.0).normalize()
+        with_model!(self.kind, M => M::sample_normal(self.alpha(), u))
     }
 
     /// The density of [`Microfacet::sample_normal`] in solid angle: D(m)(m·n).
@@ -248,67 +354,12 @@ impl Microfacet {
         self.particle_density(m)
     }
 
-    /// A normal drawn from the visible normals seen from ω_i.
-    ///
-    /// GGX: Heitz 2018, "Sampling the GGX Distribution of Visible Normals": stretch ω_i to the
-    /// unit-roughness configuration, sample the projected hemisphere, unstretch.
-    ///
-    /// Beckmann: Heitz and d'Eon 2014, slope space: stretch ω_i, then for unit roughness and
-    /// μ = cot θ the visible slope along the incident azimuth has density ∝ (μ − x)e^(−x²) on
-    /// x < μ, with CDF ∝ μ(1 + erf x)/2 + e^(−x²)/(2√π), inverted by bisection; the
-    /// perpendicular slope is Gaussian (an inverted erf); rotate to the incident azimuth,
-    /// unstretch, and m = normalize(−s_x, −s_y, 1).
+    /// A normal drawn from the visible normals seen from ω_i, for kinds that
+    /// [sample them](DistributionKind::samples_visible_normals) (each kind's file says how);
+    /// for the others, a normal from p (whose density [`Microfacet::visible_normal_pdf`] is not).
     #[must_use]
     pub fn sample_visible_normal(&self, wi: DVec3, u: [f64; 2]) -> DVec3 {
-        match self.kind {
-            DistributionKind::Ggx => self.sample_visible_ggx(wi, u),
-            DistributionKind::Beckmann => self.sample_visible_beckmann(wi, u),
-        }
-    }
-
-    fn sample_visible_ggx(&self, wi: DVec3, u: [f64; 2]) -> DVec3 {
-        let v = DVec3::new(self.alpha_x * wi.x, self.alpha_y * wi.y, wi.z).normalize();
-        let length2 = v.x * v.x + v.y * v.y;
-        let t1 = if length2 > 0.0 {
-            DVec3::new(-v.y, v.x, 0.0) / length2.sqrt()
-        } else {
-            DVec3::X
-        };
-        let t2 = v.cross(t1);
-        let r = u[0].sqrt();
-        let phi = 2.0 * std::f64::consts::PI * u[1];
-        let p1 = r * phi.cos();
-        let s = 0.5 * (1.0 + v.z);
-        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
-        let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * v;
-        DVec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(1e-12)).normalize()
-    }
-
-    fn sample_visible_beckmann(&self, wi: DVec3, u: [f64; 2]) -> DVec3 {
-        let v = DVec3::new(self.alpha_x * wi.x, self.alpha_y * wi.y, wi.z).normalize();
-        let sin_theta = (v.x * v.x + v.y * v.y).sqrt();
-        let (cos_phi, sin_phi) = if sin_theta > 0.0 {
-            (v.x / sin_theta, v.y / sin_theta)
-        } else {
-            (1.0, 0.0)
-        };
-        // Slopes beyond ±6 carry less than 1e-16 of the Gaussian's mass.
-        let mu = if sin_theta > 0.0 {
-            (v.z / sin_theta).min(1e8)
-        } else {
-            1e8
-        };
-        let sqrt_pi = std::f64::consts::PI.sqrt();
-        let numerator = |x: f64| mu * 0.5 * (1.0 + erf(x)) + (-x * x).exp() / (2.0 * sqrt_pi);
-        let upper = mu.min(6.0);
-        let target = u[0] * numerator(upper);
-        let slope_along = bisect(|x| numerator(x) - target, -6.0, upper);
-        let slope_across = bisect(|y| erf(y) - (2.0 * u[1] - 1.0), -6.0, 6.0);
-        let (x, y) = (
-            cos_phi * slope_along - sin_phi * slope_across,
-            sin_phi * slope_along + cos_phi * slope_across,
-        );
-        DVec3::new(-self.alpha_x * x, -self.alpha_y * y, 1.0).normalize()
+        with_model!(self.kind, M => M::sample_visible_normal(self.alpha(), wi, u))
     }
 
     /// The density of [`Microfacet::sample_visible_normal`]: G1(ω_i, m)·max(0, ω_i·m)·D(m)/ω_i.z.
@@ -319,10 +370,37 @@ impl Microfacet {
         }
         self.g1(wi, m) * wi.dot(m).max(0.0) * self.d(m) / wi.z
     }
+
+    /// 2π times the mass of p per unit ψ along a ray of scaled slopes for ρ in [a, b]
+    /// ([`Model::ray_mass`]).
+    pub(crate) fn ray_mass(&self, direction: (f64, f64), a: f64, b: f64) -> f64 {
+        with_model!(self.kind, M => M::ray_mass(self.alpha(), direction, a, b))
+    }
+}
+
+/// (x²/α_x² + y²/α_y²)/z² for m = (x, y, z): the squared scaled slope of radial kinds.
+pub(crate) fn scaled_slope2((alpha_x, alpha_y): (f64, f64), m: DVec3) -> f64 {
+    (m.x * m.x / (alpha_x * alpha_x) + m.y * m.y / (alpha_y * alpha_y)) / (m.z * m.z)
+}
+
+/// The unit normal normalize(−s_x, −s_y, 1) of the slopes s = (α_x ρ cos φ, α_y ρ sin φ),
+/// φ = 2πu: a radial kind's sample from its scaled radius ρ.
+pub(crate) fn normal_from_scaled_slope(
+    (alpha_x, alpha_y): (f64, f64),
+    radius: f64,
+    u: f64,
+) -> DVec3 {
+    let phi = 2.0 * std::f64::consts::PI * u;
+    DVec3::new(
+        -alpha_x * radius * phi.cos(),
+        -alpha_y * radius * phi.sin(),
+        1.0,
+    )
+    .normalize()
 }
 
 /// The root of increasing `f` in [lo, hi] by bisection to double precision.
-fn bisect(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
+pub(crate) fn bisect(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
     for _ in 0..64 {
         let mid = 0.5 * (lo + hi);
         if mid <= lo || mid >= hi {
@@ -404,8 +482,60 @@ mod tests {
     }
 
     #[test]
+    fn the_table_names_every_kind_once() {
+        for (index, kind) in DistributionKind::ALL.into_iter().enumerate() {
+            assert_eq!(DistributionKind::from_name(kind.name()), Some(kind));
+            assert_eq!(kind.code() as usize, index);
+            assert_eq!(DistributionKind::from_code(kind.code()), Some(kind));
+            assert_eq!(kind.to_string(), kind.name());
+            assert!(
+                kind.name()
+                    .chars()
+                    .all(|c| c.is_ascii_lowercase() || c == '_')
+            );
+        }
+        assert_eq!(DistributionKind::from_name("Beckmann"), None);
+        assert_eq!(DistributionKind::names(), "beckmann, ggx");
+    }
+
+    /// The contract's symmetries, bit for bit: p is even in m_x and in m_y, and with
+    /// α_x = α_y a quarter turn about n leaves it unchanged (the count tree's law excess walks
+    /// one octant on that promise).
+    #[test]
+    fn every_kind_keeps_the_symmetries_the_count_tree_relies_on() {
+        for kind in DistributionKind::ALL {
+            for (ax, ay) in [(0.3, 0.1), (0.2, 0.2), (1e-4, 1.0), (0.05, 0.05)] {
+                let d = Microfacet::new(kind, ax, ay).unwrap();
+                for k in 0..200 {
+                    let t = f64::from(k) * 0.618_033_988_749_895;
+                    let (sin, cos) = (std::f64::consts::TAU * t.fract()).sin_cos();
+                    let tan = 3.0 * (0.37 * f64::from(k)).fract();
+                    let m = DVec3::new(tan * cos, tan * sin, 1.0).normalize();
+                    let p = d.particle_density(m);
+                    let mirrored_x = DVec3::new(-m.x, m.y, m.z);
+                    let mirrored_y = DVec3::new(m.x, -m.y, m.z);
+                    assert_eq!(
+                        p.to_bits(),
+                        d.particle_density(mirrored_x).to_bits(),
+                        "{kind}"
+                    );
+                    assert_eq!(
+                        p.to_bits(),
+                        d.particle_density(mirrored_y).to_bits(),
+                        "{kind}"
+                    );
+                    if ax == ay {
+                        let turned = DVec3::new(-m.y, m.x, m.z);
+                        assert_eq!(p.to_bits(), d.particle_density(turned).to_bits(), "{kind}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn known_values() {
-        for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for kind in DistributionKind::ALL {
             let d = Microfacet::new(kind, 0.3, 0.1).unwrap();
             // D(n) = 1/(π α_x α_y) for both.
             assert!((d.d(DVec3::Z) - 1.0 / (std::f64::consts::PI * 0.03)).abs() < 1e-12);
@@ -421,7 +551,7 @@ mod tests {
     /// for any length of H.
     #[test]
     fn reflected_density_is_d_times_the_jacobian() {
-        for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for kind in DistributionKind::ALL {
             let d = Microfacet::new(kind, 0.3, 0.1).unwrap();
             for (wi, wo) in [
                 (DVec3::new(0.2, -0.1, 0.9), DVec3::new(-0.3, 0.2, 0.8)),

@@ -39,6 +39,12 @@ pub enum BrdfError {
         /// The rejected value.
         area: f64,
     },
+    /// Visible-normal sampling was asked of a distribution that does not have it
+    /// ([`crate::DistributionKind::samples_visible_normals`]).
+    VisibleSamplingUnavailable {
+        /// The distribution's name.
+        distribution: &'static str,
+    },
     /// The pdf's quadrature needs 1 to 4096 points.
     InvalidPdfPoints {
         /// The rejected value.
@@ -135,6 +141,10 @@ impl fmt::Display for BrdfError {
             Self::InvalidExpectedFootprintArea { area } => write!(
                 f,
                 "expected footprint area {area:?} is invalid: it must be finite and > 0 (texture units)"
+            ),
+            Self::VisibleSamplingUnavailable { distribution } => write!(
+                f,
+                "{distribution} has no visible-normal sampling: sample its normals from D(m)(m·n)"
             ),
             Self::InvalidPdfPoints { points } => {
                 write!(f, "{points} pdf quadrature points requested: use 1 to 4096")

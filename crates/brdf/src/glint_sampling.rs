@@ -377,7 +377,7 @@ mod quadrature_tests {
 
     #[test]
     fn the_cubature_is_accurate_where_it_is_used() {
-        for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for kind in DistributionKind::ALL {
             for cos_i in [1.0, 0.7, 0.4, 0.1] {
                 // The default pdf at the edges of its two rules.
                 for ratio in [CUBATURE_MAX_CONE, NARROW_CONE] {
@@ -394,7 +394,7 @@ mod quadrature_tests {
     fn rules_over_the_cone_fail_beyond_their_reach() {
         // Why wide cones take the slope-space rule: the polar rule at 5 times the limit's ratio
         // misses by percents (10 times: tens of percents).
-        for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for kind in DistributionKind::ALL {
             let error = worst_error(kind, 0.05, 10.0 * 0.1, 1.0, polar);
             assert!(error > 1e-2, "{kind:?}: {error}");
         }
@@ -402,7 +402,7 @@ mod quadrature_tests {
 
     #[test]
     fn the_slope_rule_takes_over_where_the_cone_is_wide() {
-        for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for kind in DistributionKind::ALL {
             for (cos_i, gamma) in [(1.0, 1.0), (0.4, 0.3), (0.05, 0.02)] {
                 let error = worst_error(kind, 0.05, gamma, cos_i, GlintSampler::pdf);
                 assert!(error < 2e-3, "{kind:?} {cos_i} {gamma}: {error}");

@@ -58,6 +58,7 @@ mod glint_sampling;
 pub mod map_budget;
 mod negligible;
 mod qmc;
+mod quadrature;
 mod slope_pdf;
 pub mod smooth;
 pub mod surface_maps;

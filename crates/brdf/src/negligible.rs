@@ -77,9 +77,9 @@ fn law_excess(tree: &CountTree, distribution: Microfacet) -> DirectionalLawExces
     }
     // Computed without the lock: two threads may both compute a new law, to the same values.
     let bound = |near, far| distribution.particle_density_bound(near, far);
-    // p reads m_x and m_y only through D's slope term m_x²/α_x² + m_y²/α_y² (the rest reads
-    // m_z), which a half turn about n leaves unchanged bit for bit, and a quarter turn too
-    // where α_x = α_y (it exchanges the two terms).
+    // Every kind's p reads m_x and m_y only through their squares, so a half turn about n
+    // leaves it unchanged bit for bit, and a quarter turn too where α_x = α_y (the contract of
+    // `distribution.rs`, tested for every kind).
     let symmetry = if alpha_x == alpha_y {
         TurnSymmetry::QuarterTurn
     } else {

@@ -54,37 +54,8 @@
 use glam::DVec3;
 use glint_sphere::SphericalConic;
 
-use crate::distribution::{DistributionKind, Microfacet};
-
-/// The 15-point Gauss–Kronrod rule on [−1, 1]: nodes x ≥ 0 (each used at ±x) with their
-/// Kronrod weights, and the weights of the embedded 7-point Gauss rule on the odd-indexed
-/// nodes (the Gauss rule is exact to degree 13, the Kronrod rule to degree 23).
-const KRONROD_NODES: [f64; 8] = [
-    0.991_455_371_120_812_6,
-    0.949_107_912_342_758_5,
-    0.864_864_423_359_769_1,
-    0.741_531_185_599_394_4,
-    0.586_087_235_467_691_1,
-    0.405_845_151_377_397_2,
-    0.207_784_955_007_898_5,
-    0.0,
-];
-const KRONROD_WEIGHTS: [f64; 8] = [
-    0.022_935_322_010_529_225,
-    0.063_092_092_629_978_55,
-    0.104_790_010_322_250_18,
-    0.140_653_259_715_525_92,
-    0.169_004_726_639_267_9,
-    0.190_350_578_064_785_4,
-    0.204_432_940_075_298_9,
-    0.209_482_141_084_727_83,
-];
-const GAUSS_WEIGHTS: [f64; 4] = [
-    0.129_484_966_168_869_7,
-    0.279_705_391_489_276_7,
-    0.381_830_050_505_118_9,
-    0.417_959_183_673_469_4,
-];
+use crate::distribution::Microfacet;
+use crate::quadrature::{Piece, adaptive_gauss_kronrod, smoothed_gauss_kronrod};
 
 /// The adaptive rule stops when its estimated error is below this fraction of the mass.
 const RELATIVE_TOLERANCE: f64 = 1e-4;
@@ -144,14 +115,14 @@ fn conic_mass_and_pieces(
     tolerance: f64,
     max_pieces: usize,
 ) -> (f64, usize) {
-    let (alpha_x, alpha_y) = lobe.alpha();
-    let rays = Rays::new(lobe.kind(), conic, wi, alpha_x, alpha_y);
-    if let Some(ellipse) = rays.ellipse() {
+    let rays = Rays::new(*lobe, conic, wi);
+    // Radial lobes integrate the ellipse's chords in closed form.
+    if let (Some(law), Some(ellipse)) = (lobe.kind().radial_law(), rays.ellipse()) {
         let cut = match cone_side(conic) {
             ConeSide::AboveTheHorizon => None,
             ConeSide::AcrossTheHorizon => Some(rays.horizon(conic)),
         };
-        return ellipse.mass(lobe.kind(), cut.as_ref(), tolerance, max_pieces);
+        return ellipse.mass(law, cut.as_ref(), tolerance, max_pieces);
     }
     ray_mass_and_pieces(&rays, tolerance, max_pieces)
 }
@@ -184,70 +155,10 @@ fn ray_mass_and_pieces(rays: &Rays, tolerance: f64, max_pieces: usize) -> (f64, 
     (integral / std::f64::consts::TAU, pieces)
 }
 
-/// A piece of an adaptive rule: (start, length, Kronrod estimate, |Kronrod − Gauss|).
-type Piece = (f64, f64, f64, f64);
-
-/// ∫ f over [start, start + length] by the 15-point Gauss–Kronrod rule, with its embedded
-/// 7-point Gauss rule for the error estimate.
-fn gauss_kronrod(start: f64, length: f64, f: impl Fn(f64) -> f64) -> Piece {
-    let mut kronrod = 0.0;
-    let mut gauss = 0.0;
-    for (k, (x, weight)) in KRONROD_NODES.iter().zip(KRONROD_WEIGHTS).enumerate() {
-        let signs: &[f64] = if *x == 0.0 { &[1.0] } else { &[1.0, -1.0] };
-        for sign in signs {
-            let value = 0.5 * length * f(start + 0.5 * length * (1.0 + sign * x));
-            kronrod += weight * value;
-            if k % 2 == 1 {
-                gauss += GAUSS_WEIGHTS[k / 2] * value;
-            }
-        }
-    }
-    (start, length, kronrod, (kronrod - gauss).abs())
-}
-
-/// [`gauss_kronrod`] after the substitution x = start + length·(3t² − 2t³), t ∈ [0, 1], which
-/// turns a square-root edge or a kink at either end into a smooth one.
-fn smoothed_gauss_kronrod(start: f64, length: f64, f: impl Fn(f64) -> f64) -> Piece {
-    let (_, _, kronrod, error) = gauss_kronrod(0.0, 1.0, |t| {
-        length * 6.0 * t * (1.0 - t) * f(start + length * t * t * (3.0 - 2.0 * t))
-    });
-    (start, length, kronrod, error)
-}
-
-/// The sum of `pieces`' estimates, the piece with the largest error halved by `rule` until
-/// the errors add up to less than `tolerance` of the sum or there are `max_pieces` pieces:
-/// (sum, pieces). No pieces: (0, 0).
-fn adaptive_gauss_kronrod(
-    mut pieces: Vec<Piece>,
-    tolerance: f64,
-    max_pieces: usize,
-    rule: impl Fn(f64, f64) -> Piece,
-) -> (f64, usize) {
-    if pieces.is_empty() {
-        return (0.0, 0);
-    }
-    loop {
-        let (sum, error) = pieces
-            .iter()
-            .fold((0.0, 0.0), |(m, e), piece| (m + piece.2, e + piece.3));
-        if error <= tolerance * sum || pieces.len() >= max_pieces {
-            return (sum, pieces.len());
-        }
-        let worst = pieces
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.3.total_cmp(&b.1.3))
-            .map_or(0, |(i, _)| i);
-        let (start, length, _, _) = pieces.swap_remove(worst);
-        pieces.push(rule(start, 0.5 * length));
-        pieces.push(rule(start + 0.5 * length, 0.5 * length));
-    }
-}
-
 /// The conditions of Ω along rays H = e_z + ρ·d(ψ) in slope space, as polynomial coefficients
 /// in ρ built from their values on the basis vectors e_z, u = (α_x, 0, 0), v = (0, α_y, 0).
 struct Rays {
-    kind: DistributionKind,
+    lobe: Microfacet,
     /// (k1, k2, −s) of [`SphericalConic::scaled_coefficients`].
     k: DVec3,
     /// e_z, u, v in the conic's frame.
@@ -259,17 +170,12 @@ struct Rays {
 }
 
 impl Rays {
-    fn new(
-        kind: DistributionKind,
-        conic: &SphericalConic,
-        wi: DVec3,
-        alpha_x: f64,
-        alpha_y: f64,
-    ) -> Self {
+    fn new(lobe: Microfacet, conic: &SphericalConic, wi: DVec3) -> Self {
+        let (alpha_x, alpha_y) = lobe.alpha();
         let frame = conic.frame();
         let to_frame = |m: DVec3| DVec3::new(frame[0].dot(m), frame[1].dot(m), frame[2].dot(m));
         Self {
-            kind,
+            lobe,
             k: conic.scaled_coefficients(),
             e: to_frame(DVec3::Z),
             u: to_frame(DVec3::new(alpha_x, 0.0, 0.0)),
@@ -480,34 +386,12 @@ impl Rays {
                     2.0 * start + 1.0
                 };
                 if inside(middle) {
-                    sum += self.tail_difference(start, end);
+                    sum += self.lobe.ray_mass((cos, sin), start, end);
                 }
             }
             start = end;
         }
         sum
-    }
-
-    /// T(a) − T(b) for a ≤ b, without cancellation when they are close.
-    fn tail_difference(&self, a: f64, b: f64) -> f64 {
-        match self.kind {
-            // e^(−a²) − e^(−b²) = e^(−a²)(1 − e^(−(b − a)(b + a))).
-            DistributionKind::Beckmann => {
-                if b.is_infinite() {
-                    (-a * a).exp()
-                } else {
-                    -(-a * a).exp() * (-(b - a) * (b + a)).exp_m1()
-                }
-            }
-            // 1/(1 + a²) − 1/(1 + b²) = (b − a)(b + a)/((1 + a²)(1 + b²)).
-            DistributionKind::Ggx => {
-                if b.is_infinite() {
-                    1.0 / (1.0 + a * a)
-                } else {
-                    (b - a) * (b + a) / ((1.0 + a * a) * (1.0 + b * b))
-                }
-            }
-        }
     }
 }
 
@@ -532,6 +416,7 @@ fn positive_roots([c0, c1, c2]: [f64; 3]) -> [Option<f64>; 2] {
 mod tests {
     use super::*;
     use crate::cone::uniform_in_cone;
+    use crate::distribution::DistributionKind;
     use crate::qmc::zero_two_point;
 
     /// The probability that ω′ (the sampler's first step, valid) lies within γ of ω_o, by
@@ -679,8 +564,8 @@ mod tests {
                     if cone_side(&conic) != side {
                         continue;
                     }
-                    let (alpha_x, alpha_y) = lobe.alpha();
-                    let rays = Rays::new(kind, &conic, wi, alpha_x, alpha_y);
+                    let rays = Rays::new(lobe, &conic, wi);
+                    let law = kind.radial_law().unwrap();
                     let Some(ellipse) = rays.ellipse() else {
                         assert_eq!(side, ConeSide::AcrossTheHorizon, "{wi} {wo}");
                         continue;
@@ -690,9 +575,9 @@ mod tests {
                         continue;
                     }
                     let cut = (side == ConeSide::AcrossTheHorizon).then(|| rays.horizon(&conic));
-                    let exact = ellipse.mass(kind, cut.as_ref(), 1e-10, 1 << 14).0;
+                    let exact = ellipse.mass(law, cut.as_ref(), 1e-10, 1 << 14).0;
                     let (mass, pieces) =
-                        ellipse.mass(kind, cut.as_ref(), RELATIVE_TOLERANCE, MAX_PIECES);
+                        ellipse.mass(law, cut.as_ref(), RELATIVE_TOLERANCE, MAX_PIECES);
                     let error = (exact - reference).abs() / reference;
                     assert!(
                         error < 1e-6,
@@ -756,7 +641,7 @@ mod tests {
             let lobe = Microfacet::new(kind, alpha, alpha).unwrap();
             let conic = SphericalConic::new(wi, wo, f64::to_radians(gamma_degrees)).unwrap();
             let wi = wi.normalize();
-            let rays = Rays::new(kind, &conic, wi, alpha, alpha);
+            let rays = Rays::new(lobe, &conic, wi);
             let reference = ray_mass_and_pieces(&rays, 1e-10, 1 << 14).0;
             let mass = conic_mass(&lobe, &conic, wi);
             assert!(reference > 0.01, "{reference}");

@@ -39,12 +39,17 @@ impl MicrofacetBrdf {
     /// The BRDF of `distribution` with `fresnel`, sampling normals by `sampling`.
     ///
     /// # Errors
-    /// Invalid Fresnel parameters.
+    /// Invalid Fresnel parameters, or [`NormalSampling::Visible`] for a kind without it.
     pub fn new(
         distribution: Microfacet,
         fresnel: Fresnel,
         sampling: NormalSampling,
     ) -> Result<Self, BrdfError> {
+        if sampling == NormalSampling::Visible && !distribution.kind().samples_visible_normals() {
+            return Err(BrdfError::VisibleSamplingUnavailable {
+                distribution: distribution.kind().name(),
+            });
+        }
         Ok(Self {
             distribution,
             fresnel: fresnel.validated()?,

@@ -44,7 +44,9 @@ typedef enum GlintStatus {
 } GlintStatus;
 
 /**
- * The microfacet distribution of the flake normals (`GlintMaterialParams::distribution`).
+ * The microfacet distribution of the flake normals (`GlintMaterialParams::distribution`):
+ * `GLINT_<NAME>` for each of glint-brdf's kinds, numbered in the order of its table
+ * (`DistributionKind::ALL`; a test checks the header against it).
  */
 typedef enum GlintDistribution {
   /**

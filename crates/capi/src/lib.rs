@@ -692,8 +692,6 @@ unsafe fn set_maps(
 /// everything else by `DiscreteBrdf::new`. Not set from C (as in `cargo xtask eval`): the
 /// sampler's α_s = 2α and coloured particles (off).
 fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure> {
-    const BECKMANN: u32 = GlintDistribution::GLINT_BECKMANN as u32;
-    const GGX: u32 = GlintDistribution::GLINT_GGX as u32;
     const NONE: u32 = GlintFresnel::GLINT_FRESNEL_NONE as u32;
     const CONDUCTOR: u32 = GlintFresnel::GLINT_FRESNEL_CONDUCTOR as u32;
     const DIELECTRIC: u32 = GlintFresnel::GLINT_FRESNEL_DIELECTRIC as u32;
@@ -703,15 +701,19 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
     const NORMAL: u32 = GlintMultinomial::GLINT_MULTINOMIAL_NORMAL as u32;
     const CUBATURE: u32 = GlintPdfQuadrature::GLINT_PDF_CUBATURE as u32;
     const QMC: u32 = GlintPdfQuadrature::GLINT_PDF_QMC as u32;
-    let kind = match p.distribution {
-        BECKMANN => DistributionKind::Beckmann,
-        GGX => DistributionKind::Ggx,
-        other => {
-            return Err(Failure::parameter(format!(
-                "distribution = {other} is invalid: use GLINT_BECKMANN or GLINT_GGX"
-            )));
-        }
-    };
+    // A kind's C constant is its index in glint-brdf's table (`tests/distributions.rs`
+    // checks the header against the table).
+    let kind = DistributionKind::from_code(p.distribution).ok_or_else(|| {
+        let constants: Vec<String> = DistributionKind::ALL
+            .iter()
+            .map(|kind| format!("GLINT_{}", kind.name().to_uppercase()))
+            .collect();
+        Failure::parameter(format!(
+            "distribution = {} is invalid: use one of {}",
+            p.distribution,
+            constants.join(", ")
+        ))
+    })?;
     let fresnel = match p.fresnel {
         NONE => Fresnel::None,
         CONDUCTOR => Fresnel::Conductor {

@@ -30,7 +30,9 @@ pub enum GlintStatus {
     GLINT_PANIC = 4,
 }
 
-/// The microfacet distribution of the flake normals (`GlintMaterialParams::distribution`).
+/// The microfacet distribution of the flake normals (`GlintMaterialParams::distribution`):
+/// `GLINT_<NAME>` for each of glint-brdf's kinds, numbered in the order of its table
+/// (`DistributionKind::ALL`; a test checks the header against it).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[allow(non_camel_case_types)] // the C names

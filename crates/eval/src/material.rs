@@ -38,7 +38,7 @@ pub const DEFAULT_NEGLIGIBLE_COUNT: f64 = 1e-12;
 /// A material as `docs/eval.md` specifies it; `None` fields take the documented defaults.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MaterialSpec {
-    /// `"beckmann"` or `"ggx"`.
+    /// A [`DistributionKind::name`]: `"beckmann"` or `"ggx"`.
     pub distribution: String,
     /// α (α_x of an anisotropic material).
     pub alpha: f64,
@@ -138,15 +138,13 @@ impl MaterialSpec {
 
     /// The validated parameters.
     fn parameters(&self) -> Result<GlintParameters, String> {
-        let kind = match self.distribution.as_str() {
-            "beckmann" => DistributionKind::Beckmann,
-            "ggx" => DistributionKind::Ggx,
-            other => {
-                return Err(format!(
-                    "material.distribution `{other}` is unknown: use beckmann or ggx"
-                ));
-            }
-        };
+        let kind = DistributionKind::from_name(&self.distribution).ok_or_else(|| {
+            format!(
+                "material.distribution `{}` is unknown: use one of {}",
+                self.distribution,
+                DistributionKind::names()
+            )
+        })?;
         let alpha = finite(self.alpha, "material.alpha")?;
         let alpha_y = match self.alpha_y {
             Some(a) => finite(a, "material.alpha_y")?,
@@ -248,10 +246,16 @@ impl MaterialSpec {
             Some(Value::String(name)) => name.clone(),
             Some(other) => {
                 return Err(format!(
-                    "material.distribution {other} is unknown: use beckmann or ggx"
+                    "material.distribution {other} is unknown: use one of {}",
+                    DistributionKind::names()
                 ));
             }
-            None => return Err("material.distribution is missing: use beckmann or ggx".to_owned()),
+            None => {
+                return Err(format!(
+                    "material.distribution is missing: use one of {}",
+                    DistributionKind::names()
+                ));
+            }
         };
         let multinomial = optional_name(m, "multinomial", "\"exact\" or \"normal\"")?;
         let dense = optional_name(m, "dense", "\"sampled\" or \"exact\"")?;

@@ -54,8 +54,8 @@
 //! these points, each piece smoothed at its ends by the substitution of [`super`]. No chord
 //! is left out: the point at distance D may lie outside the cut set.
 
-use super::{Piece, adaptive_gauss_kronrod, gauss_kronrod, smoothed_gauss_kronrod};
-use crate::distribution::DistributionKind;
+use crate::distribution::RadialLaw;
+use crate::quadrature::{Piece, adaptive_gauss_kronrod, gauss_kronrod, smoothed_gauss_kronrod};
 
 /// Beckmann chords with σ² beyond D² + this are left out (their mass is below e^(−60) of the
 /// mass near a point of the ellipse at distance D).
@@ -142,12 +142,12 @@ impl Ellipse {
         })
     }
 
-    /// The mass of the lobe of `kind` (unit scaled roughness) over the ellipse, or over its part
+    /// The mass of the radial lobe `law` (unit scaled roughness) over the ellipse, or over its part
     /// inside a `cut`, to a relative `tolerance` with at most `max_pieces` pieces of φ:
     /// (mass, pieces).
     pub(super) fn mass(
         &self,
-        kind: DistributionKind,
+        law: RadialLaw,
         cut: Option<&Cut>,
         tolerance: f64,
         max_pieces: usize,
@@ -159,10 +159,10 @@ impl Ellipse {
                 .collect()
         });
         let cut = cut.map(|cut| self.along_chords(cut.form));
-        let cuts = self.cuts_in_s(kind, cut.as_ref(), &crossings);
+        let cuts = self.cuts_in_s(law, cut.as_ref(), &crossings);
         let b = self.minor;
         let angle = |s: f64| (s / b).clamp(-1.0, 1.0).asin();
-        let integrand = |phi: f64| self.across(kind, cut.as_ref(), phi);
+        let integrand = |phi: f64| self.across(law, cut.as_ref(), phi);
         // A cut's chords end where they cross the boundary of {G < 0} (kinks) or where it ends
         // (square-root edges), at the cuts: every piece is smoothed at its ends.
         let rule = |start: f64, length: f64| match cut {
@@ -184,16 +184,11 @@ impl Ellipse {
     /// points where {G < 0} touches a chord inside the ellipse, and the boundaries' `crossings`
     /// (given: a search for them misses pairs close together, and with them the whole cut set).
     /// Inside it, cuts at s* ± 2, ± 8, … and at those points.
-    fn cuts_in_s(
-        &self,
-        kind: DistributionKind,
-        cut: Option<&ChordForm>,
-        crossings: &[f64],
-    ) -> Vec<f64> {
+    fn cuts_in_s(&self, law: RadialLaw, cut: Option<&ChordForm>, crossings: &[f64]) -> Vec<f64> {
         let b = self.minor;
         let nearest = (-self.centre_minor).clamp(-b, b);
         let mut inner = Vec::new();
-        let (low, high) = match (cut, kind) {
+        let (low, high) = match (cut, law) {
             (Some(cut), _) => {
                 let touching = cut
                     .extent()
@@ -207,7 +202,7 @@ impl Ellipse {
                     all.fold(f64::NEG_INFINITY, f64::max),
                 )
             }
-            (None, DistributionKind::Beckmann) => {
+            (None, RadialLaw::Gaussian) => {
                 // D²: the nearer to the peak of the centre and the point nearest the peak on
                 // the chord nearest it.
                 let sigma = self.centre_minor + nearest;
@@ -221,7 +216,7 @@ impl Ellipse {
                     (-self.centre_minor + reach).min(b),
                 )
             }
-            (None, DistributionKind::Ggx) => (-b, b),
+            (None, RadialLaw::Student) => (-b, b),
         };
         if !(high > low) {
             return Vec::new();
@@ -264,7 +259,7 @@ impl Ellipse {
 
     /// The integrand over φ: b·cos φ times the mass along the chord at s = b·sin φ (its part
     /// inside {G < 0} for a cut).
-    fn across(&self, kind: DistributionKind, cut: Option<&ChordForm>, phi: f64) -> f64 {
+    fn across(&self, law: RadialLaw, cut: Option<&ChordForm>, phi: f64) -> f64 {
         let (sin, cos) = sin_cos_within_quarter_turn(phi);
         let cos = cos.max(0.0);
         let s = self.minor * sin;
@@ -282,9 +277,9 @@ impl Ellipse {
         }
         let (tau0, tau1) = (self.centre_major + low, self.centre_major + high);
         // π times the mass along the chord.
-        let chord = match kind {
-            DistributionKind::Beckmann => gaussian_chord(sigma * sigma, tau0, tau1),
-            DistributionKind::Ggx => ggx_chord(1.0 + sigma * sigma, tau0, tau1),
+        let chord = match law {
+            RadialLaw::Gaussian => gaussian_chord(sigma * sigma, tau0, tau1),
+            RadialLaw::Student => ggx_chord(1.0 + sigma * sigma, tau0, tau1),
         };
         self.minor * cos * chord / std::f64::consts::PI
     }
@@ -570,7 +565,7 @@ mod tests {
     fn the_mass_of_the_whole_plane_is_one() {
         // A huge ellipse around the peak holds the whole lobe (GGX: all but 1/(1 + R²)).
         let radius: f64 = 1e3;
-        for kind in [DistributionKind::Beckmann, DistributionKind::Ggx] {
+        for law in [RadialLaw::Gaussian, RadialLaw::Student] {
             // (x² + y²) − R² < 0, centred at (0.2, −0.1).
             let (cx, cy) = (0.2, -0.1);
             let ellipse = Ellipse::from_form((
@@ -579,12 +574,12 @@ mod tests {
                 cx * cx + cy * cy - radius * radius,
             ))
             .unwrap();
-            let (mass, _) = ellipse.mass(kind, None, 1e-9, 4096);
-            let outside = match kind {
-                DistributionKind::Beckmann => 0.0,
-                DistributionKind::Ggx => 1.0 / (1.0 + radius * radius),
+            let (mass, _) = ellipse.mass(law, None, 1e-9, 4096);
+            let outside = match law {
+                RadialLaw::Gaussian => 0.0,
+                RadialLaw::Student => 1.0 / (1.0 + radius * radius),
             };
-            assert!((mass - (1.0 - outside)).abs() < 1e-6, "{kind:?}: {mass}");
+            assert!((mass - (1.0 - outside)).abs() < 1e-6, "{law:?}: {mass}");
         }
     }
 

@@ -16,12 +16,27 @@ use crate::error::TracerError;
 use crate::limits::{self, echo};
 use crate::material::{Material, Mirror, Plastic};
 
-#[derive(Clone, Copy, Debug, Default, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub(super) enum DistributionName {
-    #[default]
-    Beckmann,
-    Ggx,
+/// A `distribution` field: one of the names of glint-brdf's table of kinds
+/// ([`DistributionKind::ALL`]), Beckmann when absent.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct DistributionName(DistributionKind);
+
+impl Default for DistributionName {
+    fn default() -> Self {
+        Self(DistributionKind::Beckmann)
+    }
+}
+
+impl<'de> Deserialize<'de> for DistributionName {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(deserializer)?;
+        DistributionKind::from_name(&name).map(Self).ok_or_else(|| {
+            serde::de::Error::custom(format!(
+                "unknown distribution `{name}`: use one of {}",
+                DistributionKind::names()
+            ))
+        })
+    }
 }
 
 /// The material types, by their `type`.
@@ -143,12 +158,8 @@ impl Builder<'_> {
         kind: DistributionName,
         alpha: Roughness,
     ) -> Checked<Microfacet> {
-        let kind = match kind {
-            DistributionName::Beckmann => DistributionKind::Beckmann,
-            DistributionName::Ggx => DistributionKind::Ggx,
-        };
         let Roughness(ax, ay) = alpha;
-        Microfacet::new(kind, ax, ay).map_err(|e| TracerError::Scene {
+        Microfacet::new(kind.0, ax, ay).map_err(|e| TracerError::Scene {
             file: self.file.to_path_buf(),
             field: format!("{field}.alpha"),
             problem: e.to_string(),

@@ -1,0 +1,75 @@
+//! GGX (Trowbridge–Reitz).
+//!
+//! ```text
+//!   D(m) = 1 / (π α_x α_y z⁴ (1 + (x²/α_x² + y²/α_y²)/z²)²)
+//!   Λ    = (−1 + √(1 + 1/a²))/2,   a = z / √(α_x² x² + α_y² y²)
+//! ```
+//!
+//! In scaled slopes the lobe is radial: P(ρ) = 1/(π(1 + ρ²)²) ([`RadialLaw::Student`]).
+
+use glam::DVec3;
+
+use super::{Model, RadialLaw, normal_from_scaled_slope, scaled_slope2};
+
+/// The GGX distribution.
+pub(crate) struct Ggx;
+
+impl Model for Ggx {
+    const RADIAL: Option<RadialLaw> = Some(RadialLaw::Student);
+    const SAMPLES_VISIBLE_NORMALS: bool = true;
+
+    fn d((alpha_x, alpha_y): (f64, f64), m: DVec3) -> f64 {
+        let z2 = m.z * m.z;
+        let slope2 = scaled_slope2((alpha_x, alpha_y), m);
+        let normalization = std::f64::consts::PI * alpha_x * alpha_y * z2 * z2;
+        1.0 / (normalization * (1.0 + slope2) * (1.0 + slope2))
+    }
+
+    /// D's formula is homogeneous of degree −4 in m: D(H) = D(h)/|H|⁴ without normalizing.
+    fn d_of_half_vector(alpha: (f64, f64), half: DVec3) -> f64 {
+        Self::d(alpha, half)
+    }
+
+    /// 1/a² = projected²/w.z².
+    fn lambda((alpha_x, alpha_y): (f64, f64), w: DVec3) -> f64 {
+        let projected_squared = (alpha_x * w.x).powi(2) + (alpha_y * w.y).powi(2);
+        0.5 * ((1.0 + projected_squared / (w.z * w.z)).sqrt() - 1.0)
+    }
+
+    /// P(t) = (1 + t)^{3/2} / (1 + t/α_m²)² / (π α_x α_y), whose logarithm's derivative
+    /// 3/(2(1 + t)) − 2/(α_m² + t) changes sign once, at t* = 3α_m² − 4.
+    fn particle_density_bound((alpha_x, alpha_y): (f64, f64), t_near: f64, t_far: f64) -> f64 {
+        let alpha2 = alpha_x.max(alpha_y).powi(2);
+        let t = (3.0 * alpha2 - 4.0).clamp(t_near, t_far);
+        let fall = 1.0 + t / alpha2;
+        (1.0 + t) * (1.0 + t).sqrt() / (fall * fall * (std::f64::consts::PI * alpha_x * alpha_y))
+    }
+
+    /// The bivariate Student-like P22: radius √(u₀/(1 − u₀)) in scaled slopes, stretched by
+    /// (α_x, α_y).
+    fn sample_normal((alpha_x, alpha_y): (f64, f64), u: [f64; 2]) -> DVec3 {
+        let u0 = u[0].min(1.0 - f64::EPSILON);
+        let radius = (u0 / (1.0 - u0)).sqrt();
+        normal_from_scaled_slope((alpha_x, alpha_y), radius, u[1])
+    }
+
+    /// Heitz 2018, "Sampling the GGX Distribution of Visible Normals": stretch ω_i to the
+    /// unit-roughness configuration, sample the projected hemisphere, unstretch.
+    fn sample_visible_normal((alpha_x, alpha_y): (f64, f64), wi: DVec3, u: [f64; 2]) -> DVec3 {
+        let v = DVec3::new(alpha_x * wi.x, alpha_y * wi.y, wi.z).normalize();
+        let length2 = v.x * v.x + v.y * v.y;
+        let t1 = if length2 > 0.0 {
+            DVec3::new(-v.y, v.x, 0.0) / length2.sqrt()
+        } else {
+            DVec3::X
+        };
+        let t2 = v.cross(t1);
+        let r = u[0].sqrt();
+        let phi = 2.0 * std::f64::consts::PI * u[1];
+        let p1 = r * phi.cos();
+        let s = 0.5 * (1.0 + v.z);
+        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+        let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * v;
+        DVec3::new(alpha_x * nh.x, alpha_y * nh.y, nh.z.max(1e-12)).normalize()
+    }
+}
