@@ -114,7 +114,7 @@ class Material:
     """A glint material, built once (a few ms) and reused for any number of queries.
 
     Parameters have the names, defaults, meaning and ranges of ``docs/eval.md``'s material
-    fields: ``distribution`` (a name in ``glint.DISTRIBUTIONS``: "beckmann", "ggx"), roughness ``alpha`` and ``alpha_y`` in
+    fields: ``distribution`` (a name in ``glint.DISTRIBUTIONS``: "beckmann", "ggx", "ashikhmin_shirley"), roughness ``alpha`` and ``alpha_y`` in
     [1e-4, 1] (None: the same as ``alpha``), ``particles`` N per unit texture square (a whole
     number in [1, 2^53]), ``gamma_degrees`` the cone radius γ in degrees ([5.73e-5, 60], 1 by
     default; ``gamma_deg``, its older name, still works, deprecated),
@@ -257,6 +257,14 @@ class Material:
             "error": c["error"],
         }
         return self._finish(result, single)
+
+    @property
+    def smith_table(self):
+        """The table Smith's Λ is read from, for a distribution that tabulates it
+        ("ashikhmin_shirley"): a dict of ``alpha``, ``u_nodes``, ``azimuth_nodes`` and
+        ``values`` (``crates/brdf/src/distribution/ashikhmin_shirley/smith.rs`` says how it
+        is laid out and interpolated); None for the others."""
+        return self._native.smith_table
 
     @property
     def negligible_test(self):

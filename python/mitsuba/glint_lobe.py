@@ -123,7 +123,15 @@ def _normal_from_scaled_slope(radius, u1, alpha):
     return dr.normalize(mi.Vector3d(-ax * radius * cos_phi, -ay * radius * sin_phi, 1.0))
 
 
-class BeckmannPort:
+class _Port:
+    """A distribution's port; those that read Λ from the package's table take it here
+    (``Material.smith_table``)."""
+
+    def __init__(self, smith_table=None):
+        self.smith_table = smith_table
+
+
+class BeckmannPort(_Port):
     """Beckmann (``crates/brdf/src/distribution/beckmann.rs``)."""
 
     @staticmethod
@@ -163,7 +171,7 @@ class BeckmannPort:
         return _normal_from_scaled_slope(radius, u1, alpha)
 
 
-class GgxPort:
+class GgxPort(_Port):
     """GGX (``crates/brdf/src/distribution/ggx.rs``)."""
 
     @staticmethod
@@ -200,9 +208,111 @@ class GgxPort:
         return _normal_from_scaled_slope(radius, u1, alpha)
 
 
+def _log1p_over(x):
+    """ln(1 + x)/x, accurate for small x (Goldberg: ln(y)/(y − 1) with y = 1 + x rounded)."""
+    y = 1.0 + x
+    return dr.select(y == 1.0, 1.0, dr.log(y) / (y - 1.0))
+
+
+def _expm1(z):
+    """e^z − 1, accurate for small z (Kahan: (e^z − 1)·z/ln(e^z))."""
+    y = dr.exp(z)
+    return dr.select(y == 1.0, z, (y - 1.0) * z / dr.log(y))
+
+
+def _catmull_rom(p0, p1, p2, p3, f):
+    """The Catmull–Rom cubic through p1 (f = 0) and p2 (f = 1), as the package's."""
+    return p1 + 0.5 * f * (p2 - p0 + f * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
+                                          + f * (3.0 * (p1 - p2) + p3 - p0)))
+
+
+class AshikhminShirleyPort(_Port):
+    """Ashikhmin–Shirley (``crates/brdf/src/distribution/ashikhmin_shirley.rs``): exponents
+    e = 2/α² − 2, D = cos^{e(φ)}θ/(π α_x α_y); Λ interpolated in the package's table
+    (``Material.smith_table``, ``ashikhmin_shirley/smith.rs``) exactly as the package does."""
+
+    def __init__(self, smith_table=None):
+        super().__init__(smith_table)
+        if smith_table is None:
+            raise ValueError("the Dr.Jit lobe of ashikhmin_shirley needs the material's "
+                             "smith_table")
+        self.table = smith_table
+        self.values = mi.Float64(smith_table["values"])
+        self.u_nodes = int(smith_table["u_nodes"])
+        self.rows = int(smith_table["azimuth_nodes"])
+
+    @staticmethod
+    def _exponents(alpha):
+        ax, ay = alpha
+        return 2.0 / (ax * ax) - 2.0, 2.0 / (ay * ay) - 2.0, 1.0 / (math.pi * ax * ay)
+
+    def d(self, m, alpha):
+        """D(m) for unit m with m.z > 0."""
+        e_x, e_y, c = self._exponents(alpha)
+        x2, y2 = dr.square(m.x / m.z), dr.square(m.y / m.z)
+        return c * dr.exp(-0.5 * (e_x * x2 + e_y * y2) * _log1p_over(x2 + y2))
+
+    def lambda_(self, w, alpha):
+        """Smith's Λ(ω) from the package's table (0 along the normal)."""
+        ax, ay = alpha
+        if (ax, ay) != tuple(self.table["alpha"]):
+            raise ValueError("the smith_table is for another roughness")
+        projected = dr.sqrt(dr.square(ax * w.x) + dr.square(ay * w.y))
+        a = w.z / projected
+        u = 1.0 / (1.0 + a)
+        row_length = self.u_nodes + 1
+        x = u * (self.u_nodes - 1)
+        i = dr.minimum(dr.floor(x), self.u_nodes - 2)
+        f = x - i
+        i = mi.UInt32(i)
+
+        def along_u(r):
+            start = r * row_length
+            below = dr.select(i == 0, 1, i - 1)
+            p = [dr.gather(mi.Float64, self.values, start + k) for k in (below, i, i + 1, i + 2)]
+            return _catmull_rom(*p, f)
+
+        if self.rows == 1:
+            g = along_u(mi.UInt32(0))
+        else:
+            azimuth = dr.atan2(dr.abs(ay * w.y), dr.abs(ax * w.x))
+            y = azimuth / (0.5 * math.pi) * (self.rows - 1)
+            j = dr.clip(dr.floor(y), 0, self.rows - 2)
+            fy = y - j
+            j = mi.Int32(j)
+            last = self.rows - 1
+
+            def reflected(r):
+                return mi.UInt32(dr.select(r < 0, -r, dr.select(r > last, 2 * last - r, r)))
+
+            g = _catmull_rom(*[along_u(reflected(j + k)) for k in (-1, 0, 1, 2)], fy)
+        value = dr.maximum(g / (1.0 - u), 0.0)
+        return dr.select(projected == 0.0, 0.0, dr.select(u >= 1.0, math.inf, value))
+
+    def density_bound(self, t_near, t_far, alpha):
+        """C cos^{e_m+1}θ at t_near: p ≤ C cos^{e(φ)+1}θ, decreasing in θ."""
+        e_x, e_y, c = self._exponents(alpha)
+        return c * dr.exp(-0.5 * (min(e_x, e_y) + 1.0) * t_near * _log1p_over(t_near))
+
+    def sample_normal(self, u0, u1, alpha):
+        """A normal from D(m)(m·n): the azimuth from its marginal by quadrant, then
+        cos θ = u^{1/(e(φ)+2)}."""
+        e_x, e_y, _ = self._exponents(alpha)
+        quadrant = dr.clip(dr.floor(4.0 * u1), 0.0, 3.0)
+        v = 4.0 * u1 - quadrant
+        first = math.sqrt((e_x + 2.0) / (e_y + 2.0)) * dr.tan(0.5 * math.pi * v)
+        sin, cos = dr.sincos(dr.atan(first))
+        cos = dr.select((quadrant == 1.0) | (quadrant == 2.0), -cos, cos)
+        sin = dr.select(quadrant >= 2.0, -sin, sin)
+        e = e_x * cos * cos + e_y * sin * sin
+        rest = dr.maximum(1.0 - u0, 2.2250738585072014e-308)
+        tan = dr.sqrt(_expm1(-2.0 * dr.log(rest) / (e + 2.0)))
+        return dr.normalize(mi.Vector3d(tan * cos, tan * sin, 1.0))
+
+
 #: The Dr.Jit port of each of the package's distributions, by name. A test checks that every
 #: name in ``glint.DISTRIBUTIONS`` has one, and each against the package.
-PORTS = {"beckmann": BeckmannPort, "ggx": GgxPort}
+PORTS = {"beckmann": BeckmannPort, "ggx": GgxPort, "ashikhmin_shirley": AshikhminShirleyPort}
 
 
 class Lobe:
@@ -212,7 +322,7 @@ class Lobe:
     Directions are ``mi.Vector3d`` in the local frame (z the normal), ``wi`` toward the viewer;
     results are ``mi.Float64``."""
 
-    def __init__(self, spec, negligible_test=None):
+    def __init__(self, spec, negligible_test=None, smith_table=None):
         if spec.get("pdf_quadrature", "cubature") != "cubature":
             raise ValueError("the Dr.Jit sampler implements the cubature pdf only, not "
                              f"pdf_quadrature = {spec['pdf_quadrature']!r}")
@@ -222,7 +332,7 @@ class Lobe:
         if name not in PORTS:
             raise ValueError(f"the Dr.Jit lobe has no port of distribution {name!r}: it has "
                              f"{', '.join(PORTS)}")
-        self.kind = PORTS[name]
+        self.kind = PORTS[name](smith_table)
         alpha = float(spec["alpha"])
         alpha_y = float(spec.get("alpha_y") or alpha)
         self.alpha = (alpha, alpha_y)

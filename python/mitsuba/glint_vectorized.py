@@ -207,7 +207,7 @@ def register():
            * - distribution
              - string
              - beckmann
-             - a name in ``glint.DISTRIBUTIONS`` (``beckmann``, ``ggx``)
+             - a name in ``glint.DISTRIBUTIONS`` (``beckmann``, ``ggx``, ``ashikhmin_shirley``)
            * - alpha, alpha_y
              - float
              - 0.1, = alpha
@@ -287,10 +287,10 @@ def register():
             #: The density and tint maps' texels in Dr.Jit, for the smooth limit of one lobe.
             self.density = self.tint = None
             if self.lobe_varies:
-                self.lobe = Lobe(self.material._spec, None)
+                self.lobe = Lobe(self.material._spec, None, self.material.smith_table)
             else:
                 uniform = glint.Material(**self.params) if self.maps else self.material
-                self.lobe = Lobe(uniform._spec, uniform.negligible_test)
+                self.lobe = Lobe(uniform._spec, uniform.negligible_test, uniform.smith_table)
                 if "density_map" in self.maps:
                     self.density = TexelLookup(
                         self.maps["density_map"], fixed_point=True,

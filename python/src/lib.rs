@@ -274,6 +274,21 @@ impl Material {
         Ok(Some(dict))
     }
 
+    /// The table Λ is read from (glint-brdf's `SmithTable`) as a dict, for a distribution that
+    /// tabulates Λ (Ashikhmin–Shirley); else None. The Dr.Jit lobe interpolates it.
+    #[getter]
+    fn smith_table<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(table) = self.inner.brdf().parameters().distribution.smith_table() else {
+            return Ok(None);
+        };
+        let dict = PyDict::new(py);
+        dict.set_item("alpha", table.alpha())?;
+        dict.set_item("u_nodes", table.u_nodes())?;
+        dict.set_item("azimuth_nodes", table.azimuth_nodes())?;
+        dict.set_item("values", table.values().to_vec())?;
+        Ok(Some(dict))
+    }
+
     /// Whether f_hat, f_smooth and weights are one number per row.
     #[getter]
     fn gray(&self) -> bool {

@@ -173,7 +173,7 @@ def test_the_dr_jit_lobe_and_sampler_are_the_packages(plugins, kwargs):
     import glint_lobe
 
     m = glint.Material(particles=1e6, **kwargs)
-    lobe = glint_lobe.Lobe(m._spec)
+    lobe = glint_lobe.Lobe(m._spec, smith_table=m.smith_table)
     rng = np.random.default_rng(5)
     n = 4000
     wi = rng.normal(size=(n, 3))
@@ -208,7 +208,7 @@ def test_the_dr_jit_lobe_and_sampler_are_the_packages(plugins, kwargs):
 
     # The negligible-query test: the lanes skipped here are skipped by the package, with its λ̄.
     m = glint.Material(particles=1e7, negligible_count=1e-4, **kwargs)
-    lobe = glint_lobe.Lobe(m._spec, m.negligible_test)
+    lobe = glint_lobe.Lobe(m._spec, m.negligible_test, m.smith_table)
     mirror = wi * np.array([-1.0, -1.0, 1.0])
     wo = np.where(np.arange(n)[:, None] % 2 == 0, mirror + rng.normal(0, 0.1, (n, 3)),
                   rng.normal(size=(n, 3)))

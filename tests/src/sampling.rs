@@ -177,7 +177,7 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
 /// anisotropic lobe of α_x = 10⁻⁴ is a line of ω′, so its pdf is a band 2γ wide: γ = 10° keeps
 /// the band wide against the bins; at 3° the bins' midpoint rule misses 3% of its mass.)
 fn wide_cone_cases(angles: &[f64]) -> Vec<SamplerCase> {
-    use DistributionKind::{Beckmann, Ggx};
+    use DistributionKind::{AshikhminShirley, Beckmann, Ggx};
     // (distribution, α_x, α_y, γ in degrees, cap radius in degrees for narrow lobes)
     let materials = [
         (Beckmann, 0.01, 0.01, 20.0, None),
@@ -186,6 +186,7 @@ fn wide_cone_cases(angles: &[f64]) -> Vec<SamplerCase> {
         (Beckmann, 1e-4, 1e-4, 1.0, Some(1.5)),
         (Ggx, 1e-4, 0.5, 10.0, None),
         (Beckmann, 0.3, 1e-4, 8.0, None),
+        (AshikhminShirley, 0.01, 0.04, 20.0, None),
     ];
     let mut cases = Vec::new();
     for (kind, ax, ay, gamma_degrees, cap_degrees) in materials {

@@ -121,6 +121,8 @@ fn glint_sampler_weights_average_to_the_albedo() {
         (DistributionKind::Beckmann, 0.003, 0.003, 10.0),
         (DistributionKind::Ggx, 1e-4, 0.3, 5.0),
         (DistributionKind::Beckmann, 0.1, 0.1, 1.0),
+        // Not radial in scaled slopes: the slope-space pdf's ray rule.
+        (DistributionKind::AshikhminShirley, 0.01, 0.04, 20.0),
     ];
     let samples = 200_000;
     for (kind, ax, ay, gamma_degrees) in cases {
@@ -209,6 +211,25 @@ fn discrete_brdf_converges_to_the_smooth_one() {
         (DistributionKind::Ggx, 0.5, 0.5, 5.0, 0.7, 0.4, PI + 0.8),
         (DistributionKind::Ggx, 0.1, 0.3, 1.0, 0.4, 0.35, PI + 0.1),
         (DistributionKind::Beckmann, 0.05, 0.05, 0.5, 1.0, 1.0, PI),
+        // The paper's anisotropic ornament, on and off the peak.
+        (
+            DistributionKind::AshikhminShirley,
+            0.1,
+            0.4,
+            5.0,
+            0.5,
+            0.5,
+            PI,
+        ),
+        (
+            DistributionKind::AshikhminShirley,
+            0.1,
+            0.4,
+            5.0,
+            0.4,
+            0.7,
+            PI + 0.6,
+        ),
     ];
     for (kind, ax, ay, gamma_deg, theta_i, theta_o, phi_o) in cases {
         let d = Microfacet::new(kind, ax, ay).unwrap();

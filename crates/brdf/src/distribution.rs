@@ -1,6 +1,6 @@
 //! Microfacet distributions: one table of kinds, one file per kind.
 //!
-//! A kind is a [`Model`] in a file of its own ([`beckmann`], [`ggx`])
+//! A kind is a [`Model`] in a file of its own ([`beckmann`], [`ggx`], [`ashikhmin_shirley`])
 //! and a row of [`DistributionKind`]'s table ([`DistributionKind::ALL`], its name, and the line
 //! of [`with_model!`] that maps it to its model). Everything else takes the kinds from there:
 //! eval's and the scene files' names, C's constants (checked against the table by a test),
@@ -22,10 +22,15 @@
 //! G1(ω, m) = χ⁺(ω·m)/(1 + Λ(ω)); G(ω_i, ω_o, m) is the height-correlated form
 //! χ⁺(ω_i·m)χ⁺(ω_o·m)/(1 + Λ(ω_i) + Λ(ω_o)) (Heitz 2014).
 
+mod ashikhmin_shirley;
 mod beckmann;
 mod ggx;
 
+use std::sync::Arc;
+
 use glam::DVec3;
+
+pub use ashikhmin_shirley::SmithTable;
 
 use crate::error::BrdfError;
 
@@ -36,6 +41,8 @@ pub enum DistributionKind {
     Beckmann,
     /// GGX / Trowbridge–Reitz.
     Ggx,
+    /// Ashikhmin and Shirley's anisotropic Phong (2000), exponents e = 2/α² − 2.
+    AshikhminShirley,
 }
 
 /// Calls `$body` with `$model` standing for the [`Model`] of `$kind`: the one place that maps a
@@ -51,6 +58,10 @@ macro_rules! with_model {
                 type $model = ggx::Ggx;
                 $body
             }
+            DistributionKind::AshikhminShirley => {
+                type $model = ashikhmin_shirley::AshikhminShirley;
+                $body
+            }
         }
     };
 }
@@ -58,7 +69,11 @@ macro_rules! with_model {
 impl DistributionKind {
     /// Every kind, in the order of C's `GlintDistribution` constants (a kind's constant is its
     /// index here).
-    pub const ALL: [DistributionKind; 2] = [DistributionKind::Beckmann, DistributionKind::Ggx];
+    pub const ALL: [DistributionKind; 3] = [
+        DistributionKind::Beckmann,
+        DistributionKind::Ggx,
+        DistributionKind::AshikhminShirley,
+    ];
 
     /// The kind's name in scene files, eval, Python and the Mitsuba plugins.
     #[must_use]
@@ -66,6 +81,7 @@ impl DistributionKind {
         match self {
             DistributionKind::Beckmann => "beckmann",
             DistributionKind::Ggx => "ggx",
+            DistributionKind::AshikhminShirley => "ashikhmin_shirley",
         }
     }
 
@@ -91,7 +107,7 @@ impl DistributionKind {
             .unwrap_or(u32::MAX)
     }
 
-    /// The names of all kinds, for error messages: "beckmann, ggx".
+    /// The names of all kinds, for error messages: "beckmann, ggx, …".
     #[must_use]
     pub fn names() -> String {
         Self::ALL.map(Self::name).join(", ")
@@ -160,6 +176,11 @@ pub(crate) trait Model {
     /// [`Model::SAMPLES_VISIBLE_NORMALS`]; the default draws from p.
     fn sample_visible_normal(alpha: (f64, f64), _wi: DVec3, u: [f64; 2]) -> DVec3 {
         Self::sample_normal(alpha, u)
+    }
+
+    /// The table Λ is read from, for kinds that tabulate it.
+    fn smith_table(_alpha: (f64, f64)) -> Option<Arc<SmithTable>> {
+        None
     }
 
     /// 2π times the mass of p per unit ψ along the ray H = (α_x ρ cos ψ, α_y ρ sin ψ, 1) of
@@ -371,6 +392,14 @@ impl Microfacet {
         self.g1(wi, m) * wi.dot(m).max(0.0) * self.d(m) / wi.z
     }
 
+    /// The table this distribution reads Λ from, if its kind tabulates Λ (Ashikhmin–Shirley:
+    /// built on first use, then shared): what a port of the lobe (the Dr.Jit plugin's)
+    /// interpolates to give the same Λ.
+    #[must_use]
+    pub fn smith_table(&self) -> Option<Arc<SmithTable>> {
+        with_model!(self.kind, M => M::smith_table(self.alpha()))
+    }
+
     /// 2π times the mass of p per unit ψ along a ray of scaled slopes for ρ in [a, b]
     /// ([`Model::ray_mass`]).
     pub(crate) fn ray_mass(&self, direction: (f64, f64), a: f64, b: f64) -> f64 {
@@ -495,7 +524,10 @@ mod tests {
             );
         }
         assert_eq!(DistributionKind::from_name("Beckmann"), None);
-        assert_eq!(DistributionKind::names(), "beckmann, ggx");
+        assert_eq!(
+            DistributionKind::names(),
+            "beckmann, ggx, ashikhmin_shirley"
+        );
     }
 
     /// The contract's symmetries, bit for bit: p is even in m_x and in m_y, and with

@@ -54,6 +54,23 @@ pub(crate) fn gauss_kronrod(start: f64, length: f64, f: impl Fn(f64) -> f64) -> 
     (start, length, kronrod, (kronrod - gauss).abs())
 }
 
+/// The 15 points of the Kronrod rule on [start, start + length] with their weights (which add
+/// up to `length`): for integrals that share their integrand's values.
+pub(crate) fn kronrod_points(start: f64, length: f64) -> impl Iterator<Item = (f64, f64)> {
+    KRONROD_NODES
+        .iter()
+        .zip(KRONROD_WEIGHTS)
+        .flat_map(move |(&x, weight)| {
+            let signs: &[f64] = if x == 0.0 { &[1.0] } else { &[1.0, -1.0] };
+            signs.iter().map(move |sign| {
+                (
+                    start + 0.5 * length * (1.0 + sign * x),
+                    0.5 * length * weight,
+                )
+            })
+        })
+}
+
 /// [`gauss_kronrod`] after the substitution x = start + length·(3t² − 2t³), t ∈ [0, 1], which
 /// turns a square-root edge or a kink at either end into a smooth one.
 pub(crate) fn smoothed_gauss_kronrod(start: f64, length: f64, f: impl Fn(f64) -> f64) -> Piece {
@@ -64,11 +81,12 @@ pub(crate) fn smoothed_gauss_kronrod(start: f64, length: f64, f: impl Fn(f64) ->
 }
 
 /// The sum of `pieces`' estimates, the piece with the largest error halved by `rule` until
-/// the errors add up to less than `tolerance` of the sum or there are `max_pieces` pieces:
-/// (sum, pieces). No pieces: (0, 0).
+/// the errors add up to less than `relative` of the sum plus `absolute`, or there are
+/// `max_pieces` pieces: (sum, pieces). No pieces: (0, 0).
 pub(crate) fn adaptive_gauss_kronrod(
     mut pieces: Vec<Piece>,
-    tolerance: f64,
+    relative: f64,
+    absolute: f64,
     max_pieces: usize,
     rule: impl Fn(f64, f64) -> Piece,
 ) -> (f64, usize) {
@@ -79,7 +97,7 @@ pub(crate) fn adaptive_gauss_kronrod(
         let (sum, error) = pieces
             .iter()
             .fold((0.0, 0.0), |(m, e), piece| (m + piece.2, e + piece.3));
-        if error <= tolerance * sum || pieces.len() >= max_pieces {
+        if error <= relative * sum + absolute || pieces.len() >= max_pieces {
             return (sum, pieces.len());
         }
         let worst = pieces

@@ -151,7 +151,7 @@ fn ray_mass_and_pieces(rays: &Rays, tolerance: f64, max_pieces: usize) -> (f64, 
         .filter(|(start, end)| end > start)
         .map(|&(start, end)| rule(start, end - start))
         .collect();
-    let (integral, pieces) = adaptive_gauss_kronrod(pieces, tolerance, max_pieces, rule);
+    let (integral, pieces) = adaptive_gauss_kronrod(pieces, tolerance, 0.0, max_pieces, rule);
     (integral / std::f64::consts::TAU, pieces)
 }
 

@@ -57,6 +57,10 @@ typedef enum GlintDistribution {
    * GGX (Trowbridge–Reitz).
    */
   GLINT_GGX = 1,
+  /**
+   * Ashikhmin and Shirley's anisotropic Phong, exponents e = 2/α² − 2.
+   */
+  GLINT_ASHIKHMIN_SHIRLEY = 2,
 } GlintDistribution;
 
 /**

@@ -41,6 +41,8 @@ pub enum GlintDistribution {
     GLINT_BECKMANN = 0,
     /// GGX (Trowbridge–Reitz).
     GLINT_GGX = 1,
+    /// Ashikhmin and Shirley's anisotropic Phong, exponents e = 2/α² − 2.
+    GLINT_ASHIKHMIN_SHIRLEY = 2,
 }
 
 /// The Fresnel term (`GlintMaterialParams::fresnel`).

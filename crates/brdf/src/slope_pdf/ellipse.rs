@@ -175,7 +175,7 @@ impl Ellipse {
             .filter(|(start, end)| end > start)
             .map(|(start, end)| rule(start, end - start))
             .collect();
-        adaptive_gauss_kronrod(pieces, tolerance, max_pieces, rule)
+        adaptive_gauss_kronrod(pieces, tolerance, 0.0, max_pieces, rule)
     }
 
     /// Where the integral over s starts, ends and is first cut, sorted; empty where the set
