@@ -262,7 +262,9 @@ class AshikhminShirleyPort(_Port):
         u = 1.0 / (1.0 + a)
         row_length = self.u_nodes + 1
         x = u * (self.u_nodes - 1)
-        i = dr.minimum(dr.floor(x), self.u_nodes - 2)
+        # Clamped below too: lanes below the horizon (u < 0) read the first nodes, then are
+        # discarded (as the package, whose index saturates at 0).
+        i = dr.clip(dr.floor(x), 0, self.u_nodes - 2)
         f = x - i
         i = mi.UInt32(i)
 

@@ -284,6 +284,9 @@ impl Layer {
             Some(alpha) => Microfacet::new(parameters.distribution.kind(), alpha, alpha)?,
             None => parameters.distribution,
         };
+        // A distribution that tabulates Λ builds its table here, once per process and level,
+        // rather than in a render's first shading calls.
+        let _ = distribution.smith_table();
         let smooth = MicrofacetBrdf::new(
             distribution,
             parameters.fresnel,
@@ -380,9 +383,6 @@ impl DiscreteBrdf {
             (Some(tint), Some(density)) => WeightedTint::new(tint, density)?,
             _ => None,
         };
-        // A distribution that tabulates Λ builds its table here, once per process, rather than
-        // in the first shading call of every thread.
-        let _ = parameters.distribution.smith_table();
         Ok(Self {
             parameters,
             layers,

@@ -38,7 +38,7 @@ pub const DEFAULT_NEGLIGIBLE_COUNT: f64 = 1e-12;
 /// A material as `docs/eval.md` specifies it; `None` fields take the documented defaults.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MaterialSpec {
-    /// A [`DistributionKind::name`]: `"beckmann"` or `"ggx"`.
+    /// A [`DistributionKind::name`]: `"beckmann"`, `"ggx"` or `"ashikhmin_shirley"`.
     pub distribution: String,
     /// α (α_x of an anisotropic material).
     pub alpha: f64,

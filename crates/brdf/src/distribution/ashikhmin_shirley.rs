@@ -99,7 +99,7 @@ impl Model for AshikhminShirley {
 
     /// From the table of [`smith`], built once per roughness.
     fn lambda(alpha: (f64, f64), w: DVec3) -> f64 {
-        SmithTable::of(alpha).lambda(w)
+        SmithTable::lambda_of(alpha, w)
     }
 
     fn smith_table(alpha: (f64, f64)) -> Option<Arc<SmithTable>> {

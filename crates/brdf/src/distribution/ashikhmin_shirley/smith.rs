@@ -150,6 +150,19 @@ fn coordinates((alpha_x, alpha_y): (f64, f64), w: DVec3) -> (f64, f64) {
 }
 
 impl SmithTable {
+    /// Λ(ω) from the table of roughness `alpha` (built on first use), for a unit ω above the
+    /// horizon, off the normal: the thread's last table is read in place, without a lock or a
+    /// reference count.
+    pub(crate) fn lambda_of(alpha: (f64, f64), w: DVec3) -> f64 {
+        let cached = LAST.with(|last| {
+            last.borrow()
+                .as_ref()
+                .filter(|table| table.alpha == alpha)
+                .map(|table| table.lambda(w))
+        });
+        cached.unwrap_or_else(|| Self::of(alpha).lambda(w))
+    }
+
     /// The table of roughness `alpha`, built on first use.
     pub(crate) fn of(alpha: (f64, f64)) -> Arc<Self> {
         let same = |table: &Arc<Self>| table.alpha == alpha;
@@ -159,14 +172,18 @@ impl SmithTable {
         let lock = || TABLES.lock().unwrap_or_else(|e| e.into_inner());
         let known = lock().iter().find(|t| same(t)).cloned();
         let table = known.unwrap_or_else(|| {
-            // Built without the lock: two threads may both build a new table, to the same values.
-            let table = Arc::new(Self::new(alpha));
+            // Built without the lock: two threads may both build a new table, to the same
+            // values; the first to return keeps its own, the other takes it.
+            let built = Arc::new(Self::new(alpha));
             let mut tables = lock();
+            if let Some(first) = tables.iter().find(|t| same(t)) {
+                return Arc::clone(first);
+            }
             if tables.len() == REMEMBERED_TABLES {
                 tables.remove(0);
             }
-            tables.push(Arc::clone(&table));
-            table
+            tables.push(Arc::clone(&built));
+            built
         });
         LAST.with(|last| *last.borrow_mut() = Some(Arc::clone(&table)));
         table
