@@ -236,7 +236,6 @@ class AshikhminShirleyPort(_Port):
         if smith_table is None:
             raise ValueError("the Dr.Jit lobe of ashikhmin_shirley needs the material's "
                              "smith_table")
-        self.table = smith_table
         self.values = mi.Float64(smith_table["values"])
         self.u_nodes = int(smith_table["u_nodes"])
         self.rows = int(smith_table["azimuth_nodes"])
@@ -255,7 +254,7 @@ class AshikhminShirleyPort(_Port):
     def lambda_(self, w, alpha):
         """Smith's Λ(ω) from the package's table (0 along the normal)."""
         ax, ay = alpha
-        if (ax, ay) != tuple(self.table["alpha"]):
+        if (ax, ay) != tuple(self.smith_table["alpha"]):
             raise ValueError("the smith_table is for another roughness")
         projected = dr.sqrt(dr.square(ax * w.x) + dr.square(ay * w.y))
         a = w.z / projected

@@ -77,8 +77,14 @@ pub(super) fn exponents((alpha_x, alpha_y): (f64, f64)) -> (f64, f64, f64) {
 }
 
 /// ln(1 + r²)/r², 1 at r = 0.
-pub(super) fn log_ratio(r2: f64) -> f64 {
+fn log_ratio(r2: f64) -> f64 {
     if r2 == 0.0 { 1.0 } else { r2.ln_1p() / r2 }
+}
+
+/// ln cos^{e(φ)}θ = −½(e_x x² + e_y y²)·ln(1 + r²)/r² for squared slopes x², y²: D's shape,
+/// which D and the slope density P22 = D cos⁴θ share.
+pub(super) fn log_phong((e_x, e_y): (f64, f64), x2: f64, y2: f64) -> f64 {
+    -0.5 * (e_x * x2 + e_y * y2) * log_ratio(x2 + y2)
 }
 
 impl Model for AshikhminShirley {
@@ -88,7 +94,7 @@ impl Model for AshikhminShirley {
     fn d(alpha: (f64, f64), m: DVec3) -> f64 {
         let (e_x, e_y, c) = exponents(alpha);
         let (x2, y2) = ((m.x / m.z).powi(2), (m.y / m.z).powi(2));
-        c * (-0.5 * (e_x * x2 + e_y * y2) * log_ratio(x2 + y2)).exp()
+        c * log_phong((e_x, e_y), x2, y2).exp()
     }
 
     /// D reads H through the ratios H_x/H_z and H_y/H_z only.

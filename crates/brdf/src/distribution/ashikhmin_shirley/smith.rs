@@ -31,7 +31,7 @@ use std::sync::{Arc, Mutex};
 
 use glam::DVec3;
 
-use super::{exponents, log_ratio};
+use super::{exponents, log_phong};
 use crate::quadrature::{adaptive_gauss_kronrod, gauss_kronrod, kronrod_points};
 
 /// The marginal density's quadrature across the azimuth stops at this relative error
@@ -97,8 +97,7 @@ fn row(alpha: (f64, f64), scaled_azimuth: f64) -> Vec<f64> {
 /// P22 = D cos⁴θ at slopes (x, y): C exp(−½(e_x x² + e_y y²)·ln(1 + r²)/r² − 2 ln(1 + r²)).
 fn slope_density((e_x, e_y, c): (f64, f64, f64), x: f64, y: f64) -> f64 {
     let (x2, y2) = (x * x, y * y);
-    let r2 = x2 + y2;
-    c * (-0.5 * (e_x * x2 + e_y * y2) * log_ratio(r2) - 2.0 * r2.ln_1p()).exp()
+    c * (log_phong((e_x, e_y), x2, y2) - 2.0 * (x2 + y2).ln_1p()).exp()
 }
 
 /// P2(q), the density of the slope along the azimuth (cos φ_o, sin φ_o): P22 integrated across
