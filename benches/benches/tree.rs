@@ -33,19 +33,42 @@ fn tree(c: &mut Criterion) {
     group.bench_function("density_map_build_1024", |b| {
         b.iter(|| DensityMap::new(side, side, black_box(&values)).expect("a valid map"))
     });
-    for (side, filter) in [
-        (1024, MapFilter::Nearest),
-        (1024, MapFilter::Bilinear),
-        (8192, MapFilter::Nearest),
+    // A roughness level's map: the production map times a hat of width 2/7 across x (one of
+    // eight levels over a gradient), 0 over most tiles, so its tables are tiled. Its twin
+    // with 10⁻⁹ instead of 0 (no empty tile: tables whole) has nearly the same particles,
+    // so the two queries' ratio is the tiled tables' cost.
+    let level_values = |side: usize, floor: f64| {
+        let mut values = production_density_values(side);
+        for (k, value) in values.iter_mut().enumerate() {
+            let x = ((k % side) as f64 + 0.5) / side as f64;
+            *value = (*value * (1.0 - 7.0 * (x - 0.5).abs()).max(0.0)).max(floor);
+        }
+        values
+    };
+    let values = level_values(side, 0.0);
+    group.bench_function("density_map_build_1024_level", |b| {
+        b.iter(|| DensityMap::new(side, side, black_box(&values)).expect("a valid map"))
+    });
+    for (side, filter, level) in [
+        (1024, MapFilter::Nearest, None),
+        (1024, MapFilter::Bilinear, None),
+        (8192, MapFilter::Nearest, None),
+        (1024, MapFilter::Nearest, Some(0.0)),
+        (1024, MapFilter::Nearest, Some(1e-9)),
     ] {
-        let values = production_density_values(side);
+        let values = match level {
+            Some(floor) => level_values(side, floor),
+            None => production_density_values(side),
+        };
         let map = DensityMap::with_filter(side, side, &values, filter).expect("valid");
         let (tree, queries) = table1_mapped_workload(&TABLE1[0], POOL, 1, Arc::new(map));
         let mut scratch = QueryScratch::new();
         let mut i = 0;
-        let suffix = match filter {
-            MapFilter::Nearest => String::new(),
-            MapFilter::Bilinear => "_bilinear".to_owned(),
+        let suffix = match (filter, level) {
+            (MapFilter::Bilinear, _) => "_bilinear",
+            (MapFilter::Nearest, None) => "",
+            (MapFilter::Nearest, Some(0.0)) => "_level",
+            (MapFilter::Nearest, Some(_)) => "_level_whole",
         };
         group.bench_function(
             format!("query_{}_map_{side}{suffix}", TABLE1[0].name),

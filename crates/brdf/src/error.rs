@@ -224,7 +224,7 @@ impl fmt::Display for BrdfError {
                     "lower roughness_levels or the maps' resolution"
                 } else {
                     "lower the maps' resolution (a tint map costs about 100 bytes a texel with \
-                     a density map of its size, a density or roughness level map about 12.7)"
+                     a density map of its size, a density or roughness level map up to 12.7)"
                 };
                 write!(
                     f,

@@ -3,9 +3,14 @@
 //! A material holds the maps it is given (a density map, a roughness map, a tint map) and
 //! builds more from them: a density map per roughness level (d·w_k, [`crate::surface_maps`])
 //! and, when the density and tint maps have one size, the tint weighted by the density (three
-//! more). Each density map costs [`DensityMap::bytes_for`] its size, about 12.7 bytes a
-//! texel, so a 4096² roughness map at 64 levels would need 13.6 GB. [`DiscreteBrdf::new`] counts what
-//! the material will hold from the maps' sizes alone and refuses, with
+//! more). A density map costs at most [`DensityMap::bytes_for`] its size, about 12.7 bytes a
+//! texel, and less where it is 0 over whole tiles of 64 × 64 texels, which it leaves out. A
+//! roughness level's map d·w_k is 0 wherever α is not near the level's, so K levels hold
+//! about two maps' worth where α varies smoothly or in regions (8 levels of a smooth 4096²
+//! gradient: 2.5 maps), and up to K maps' worth where it changes at every texel (a 4096² map
+//! of 97 values at 64 levels: 56 non-empty levels, 11.9 GB). [`DiscreteBrdf::new`] counts what
+//! the material will hold from one pass over the maps' texels (which tiles each derived map
+//! would occupy, [`DensityMap::bytes_for_occupancy`]) and refuses, with
 //! [`BrdfError::MapsTooLarge`], a material over [`MAX_MAP_BYTES`]: every interface (scene
 //! files, `eval`, C, Python, Mitsuba) builds materials through it, so the bound is the same
 //! everywhere.
@@ -16,14 +21,16 @@ use glint_tree::DensityMap;
 
 use crate::discrete::GlintParameters;
 use crate::error::BrdfError;
-use crate::surface_maps::level_alphas;
+use crate::surface_maps::{LevelWeights, WeightedTint};
 
 /// The most memory a material's maps may hold, in bytes (4 GiB, 4.29 GB): the maps it is given
-/// and the ones it builds from them. An 8192² density map takes 0.85 GB; a 4096² roughness map
-/// fits at up to 19 levels (4.17 GB), 18 with a density map of its size; an 8192² one at 4.
+/// and the ones it builds from them. An 8192² density map takes at most 0.85 GB; a 4096²
+/// roughness map whose α changes at every texel fits at up to 19 non-empty levels (4.17 GB),
+/// 18 with a density map of its size; one whose α varies smoothly or in regions at any K (its
+/// levels hold a few density maps' worth: `roughness_levels_hold_about_two_maps_not_k`).
 pub const MAX_MAP_BYTES: u64 = 4 << 30;
 
-/// What a material's maps hold, in bytes, counted from their sizes.
+/// What a material's maps hold, in bytes, counted before they are built.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MapBytes {
     /// The maps the material is given (density, roughness and tint, with the tint's own
@@ -40,32 +47,44 @@ pub struct MapBytes {
 }
 
 impl MapBytes {
-    /// What the material built from `parameters` will hold in maps (an upper bound: levels
-    /// that turn out empty are not built). Costs a sort of the roughness map's values.
+    /// What the material built from `parameters` will hold in maps: the bytes each map's
+    /// tables will hold, whole or tiled ([`DensityMap::bytes_for_occupancy`]), from one pass
+    /// over the maps' texels that marks the tiles each derived map occupies (levels and
+    /// channels of zeros are not built and count nothing).
     ///
     /// # Errors
     /// Those of the roughness levels' count ([`BrdfError::InvalidRoughnessLevels`],
     /// [`BrdfError::TooFewRoughnessLevels`]).
     pub fn of(parameters: &GlintParameters) -> Result<Self, BrdfError> {
         let mut bytes = Self::default();
-        if let Some(density) = &parameters.density_map {
+        let density = parameters.density_map.as_deref();
+        if let Some(density) = density {
             bytes.given += density.heap_bytes() as u64;
         }
         if let Some(tint) = &parameters.tint_map {
             bytes.given += tint.heap_bytes() as u64;
-            if let Some(density) = &parameters.density_map
+            if let Some(density) = density
                 && density.size() == tint.size()
             {
-                let (width, height) = tint.size();
-                bytes.weighted_tint = 3 * DensityMap::bytes_for(width, height) as u64;
+                bytes.weighted_tint = WeightedTint::occupancies(tint, density)
+                    .iter()
+                    .map(|channel| DensityMap::bytes_for_occupancy(channel) as u64)
+                    .sum();
             }
         }
         if let Some(alpha) = &parameters.alpha_map {
             let (width, height) = alpha.size();
             bytes.given += alpha.heap_bytes() as u64;
             bytes.roughness = Some((width, height, parameters.roughness_levels));
-            bytes.level_maps = level_alphas(alpha, parameters.roughness_levels)?.0.len();
-            bytes.levels = bytes.level_maps as u64 * DensityMap::bytes_for(width, height) as u64;
+            // The levels are built over the density map only when the sizes agree (else the
+            // material is refused with `MapSizesDiffer`; count the levels without it).
+            let density = density.filter(|d| d.size() == (width, height));
+            let occupancies =
+                LevelWeights::new(density, alpha, parameters.roughness_levels)?.occupancies();
+            for occupancy in occupancies.iter().filter(|o| !o.is_empty()) {
+                bytes.level_maps += 1;
+                bytes.levels += DensityMap::bytes_for_occupancy(occupancy) as u64;
+            }
         }
         Ok(bytes)
     }
@@ -128,11 +147,63 @@ mod tests {
         }
     }
 
+    /// A roughness map's K levels hold about what two density maps hold, not K: each texel
+    /// has weight on two levels at most (one where the levels are exact), and a level's
+    /// tables leave out the tiles where it is 0. Measured on a smooth gradient (α from 0.02
+    /// to 0.4 across the map, 8 interpolated levels) and on a painted map of three values
+    /// (exact levels; its stripes cross most tiles of two of them), both 1024².
+    #[test]
+    fn roughness_levels_hold_about_two_maps_not_k() {
+        let side = 1024;
+        let whole = DensityMap::bytes_for(side, side) as f64;
+        let gradient: Vec<f64> = (0..side * side)
+            .map(|k| {
+                let (x, y) = (
+                    (k % side) as f64 / side as f64,
+                    (k / side) as f64 / side as f64,
+                );
+                0.02 * 20f64.powf((0.7 * x + 0.3 * y).min(1.0))
+            })
+            .collect();
+        let painted: Vec<f64> = (0..side * side)
+            .map(|k| {
+                let (x, y) = (
+                    (k % side) as f64 / side as f64,
+                    (k / side) as f64 / side as f64,
+                );
+                let r = ((x - 0.5).powi(2) + (y - 0.4).powi(2)).sqrt();
+                if r < 0.2 {
+                    0.05
+                } else if (x * 7.0 + y * 3.0).fract() < 0.3 {
+                    0.3
+                } else {
+                    0.12
+                }
+            })
+            .collect();
+        for (name, alphas, most) in [("gradient", gradient, 3.2), ("painted", painted, 2.4)] {
+            let material = GlintParameters {
+                alpha_map: Some(Arc::new(RoughnessMap::new(side, side, &alphas).unwrap())),
+                roughness_levels: 8,
+                ..parameters()
+            };
+            let counted = MapBytes::of(&material).unwrap();
+            let maps = counted.levels as f64 / whole;
+            assert!(
+                maps < most,
+                "{name}: {} levels hold {maps:.2} maps",
+                counted.level_maps
+            );
+            let built = DiscreteBrdf::new(material).unwrap();
+            assert_eq!(built.map_bytes(), counted.total(), "{name}");
+        }
+    }
+
     /// A roughness map whose levels would pass the budget is refused before anything is
     /// built, naming the bytes, the levels and the map's size; fewer levels pass.
     #[test]
     fn a_material_over_the_budget_is_refused_before_building() {
-        // 4096² texels of 97 values: each level map needs 213 MB, 64 of them 13.6 GB.
+        // 4096² texels of 97 values: each level map needs 213 MB, 56 of them 11.9 GB.
         let (width, height) = (4096, 4096);
         let alphas: Vec<f64> = (0..width * height)
             .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
@@ -147,8 +218,13 @@ mod tests {
         let BrdfError::MapsTooLarge { bytes } = error else {
             panic!("{error}");
         };
-        assert_eq!(bytes.level_maps, 64);
-        assert!(bytes.total() > 13_000_000_000, "{}", bytes.total());
+        // Levels between the map's 97 values that no texel's hat function reaches hold
+        // nothing and count nothing; every other one occupies every tile (the values change
+        // at every texel), so its tables are whole.
+        assert_eq!(bytes.level_maps, 56);
+        let whole = DensityMap::bytes_for(width, height) as u64;
+        assert_eq!(bytes.levels, 56 * whole);
+        assert!(bytes.total() > 11_000_000_000, "{}", bytes.total());
         let message = error.to_string();
         for part in [
             "roughness_levels = 64",

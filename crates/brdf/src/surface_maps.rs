@@ -31,7 +31,7 @@
 use std::sync::Arc;
 
 use glam::{DVec2, DVec3};
-use glint_tree::{DensityMap, DensityMapError, Footprint, MapFilter};
+use glint_tree::{DensityMap, DensityMapError, Footprint, MapFilter, MapOccupancy};
 
 use crate::error::BrdfError;
 
@@ -234,9 +234,10 @@ impl WeightedTint {
             return Ok(None);
         }
         let (width, height) = tint.size();
+        let d = density.texels();
         let channel = |c: usize| {
             let texels: Vec<f64> = (0..width * height)
-                .map(|k| density.texel(k % width, k / width) * tint.values[k][c])
+                .map(|k| d[k] * tint.values[k][c])
                 .collect();
             match DensityMap::with_filter(width, height, &texels, density.filter()) {
                 Ok(map) => Ok(Some(Arc::new(map))),
@@ -248,6 +249,19 @@ impl WeightedTint {
             density: Arc::clone(density),
             channels: [channel(0)?, channel(1)?, channel(2)?],
         }))
+    }
+
+    /// Which tiles each channel's map d·t would occupy, for a density map of the tint's size.
+    pub(crate) fn occupancies(tint: &TintMap, density: &DensityMap) -> [MapOccupancy; 3] {
+        let (width, height) = tint.size();
+        let d = density.texels();
+        std::array::from_fn(|c| {
+            let mut occupancy = MapOccupancy::new(width, height);
+            for (k, (d, t)) in d.iter().zip(&tint.values).enumerate() {
+                occupancy.mark(k % width, k / width, d * t[c]);
+            }
+            occupancy
+        })
     }
 
     /// The heap memory of its channels' maps, in bytes (the density map is the material's).
@@ -362,6 +376,128 @@ pub(crate) fn level_alphas(
     Ok((interpolated, false))
 }
 
+/// The share w_k(x) of each roughness level in each texel's flakes (see the module docs), with
+/// the density d(x) they multiply: the values of the levels' density maps d·w_k.
+pub(crate) struct LevelWeights<'a> {
+    /// d of each texel (`None`: 1 everywhere).
+    density: Option<Vec<f64>>,
+    alpha: &'a RoughnessMap,
+    /// The levels' α.
+    pub(crate) alphas: Vec<f64>,
+    /// Whether the levels are the map's own values (w_k(x) = [α(x) = α_k]).
+    exact: bool,
+    /// Interpolated levels: each texel's position in [0, K − 1] between them (log α).
+    positions: Vec<f64>,
+}
+
+impl<'a> LevelWeights<'a> {
+    /// The weights of roughness map `alpha`'s levels, at most `levels` of them, over density
+    /// map `density` (the size and filter of `alpha`; checked by the caller).
+    ///
+    /// # Errors
+    /// Those of [`level_alphas`].
+    pub(crate) fn new(
+        density: Option<&'a DensityMap>,
+        alpha: &'a RoughnessMap,
+        levels: usize,
+    ) -> Result<Self, BrdfError> {
+        let (alphas, exact) = level_alphas(alpha, levels)?;
+        let last = alphas.len() - 1;
+        let positions: Vec<f64> = if exact || last == 0 {
+            Vec::new()
+        } else {
+            let (low, high) = (alphas[0].ln(), alphas[last].ln());
+            alpha
+                .values
+                .iter()
+                .map(|a| ((a.ln() - low) / (high - low) * last as f64).clamp(0.0, last as f64))
+                .collect()
+        };
+        Ok(Self {
+            density: density.map(DensityMap::texels),
+            alpha,
+            alphas,
+            exact,
+            positions,
+        })
+    }
+
+    /// Texel k's levels with their weights: 1 on its own α where exact, else the hat
+    /// functions of log α centred on the levels (non-zero on the two levels around its
+    /// position, at most). A second entry of weight 0 stands for none.
+    fn weights(&self, k: usize) -> [(usize, f64); 2] {
+        let last = self.alphas.len() - 1;
+        if self.exact {
+            let a = self.alpha.values[k];
+            let level = self
+                .alphas
+                .binary_search_by(|x| x.total_cmp(&a))
+                .expect("exact levels hold every value of the map");
+            return [(level, 1.0), (level, 0.0)];
+        }
+        if last == 0 {
+            return [(0, 1.0), (0, 0.0)];
+        }
+        let position = self.positions[k];
+        let below = (position.floor() as usize).min(last - 1);
+        let above = position - below as f64;
+        [(below, 1.0 - above), (below + 1, above)]
+    }
+
+    /// w of texel k on `level`: [`Self::weights`]' entry for it, else 0.
+    fn weight(&self, k: usize, level: usize) -> f64 {
+        if self.exact {
+            return f64::from(u8::from(self.alpha.values[k] == self.alphas[level]));
+        }
+        let last = self.alphas.len() - 1;
+        if last == 0 {
+            return 1.0;
+        }
+        // A hat is 0 a level or more from its centre, exactly as the two weights below give
+        // it (at |position − level| = 1 they give it weight 0): most texels stop here.
+        if (self.positions[k] - level as f64).abs() >= 1.0 {
+            return 0.0;
+        }
+        match self.weights(k) {
+            [(below, w), _] if below == level => w,
+            [_, (above, w)] if above == level => w,
+            _ => 0.0,
+        }
+    }
+
+    /// d·w of texel k on `level` (d·w ≤ 1, both are; the clamp only absorbs rounding).
+    fn value(&self, k: usize, level: usize) -> f64 {
+        self.value_of(k, self.weight(k, level))
+    }
+
+    /// d·w of texel k for its weight `w`.
+    fn value_of(&self, k: usize, w: f64) -> f64 {
+        let d = self.density.as_ref().map_or(1.0, |d| d[k]);
+        (d * w).clamp(0.0, 1.0)
+    }
+
+    /// The values of `level`'s density map, row by row as a map's values are given.
+    pub(crate) fn values(&self, level: usize) -> Vec<f64> {
+        (0..self.alpha.values.len())
+            .map(|k| self.value(k, level))
+            .collect()
+    }
+
+    /// Which tiles each level's density map would occupy, in one pass over the texels.
+    pub(crate) fn occupancies(&self) -> Vec<MapOccupancy> {
+        let (width, height) = self.alpha.size();
+        let mut occupancies = vec![MapOccupancy::new(width, height); self.alphas.len()];
+        for k in 0..self.alpha.values.len() {
+            for (level, w) in self.weights(k) {
+                if w > 0.0 {
+                    occupancies[level].mark(k % width, k / width, self.value_of(k, w));
+                }
+            }
+        }
+        occupancies
+    }
+}
+
 /// The roughness levels of a material with density map `density` and roughness map `alpha`,
 /// at most `levels` of them (see the module docs); levels whose density is 0 everywhere are
 /// left out. Without a roughness map, one level: the material's α and its density map. The
@@ -401,47 +537,10 @@ pub(crate) fn roughness_levels(
             alpha: alpha.filter(),
         });
     }
-    let d = |k: usize| density.map_or(1.0, |map| map.texel(k % width, k / width));
-    let (alphas, exact) = level_alphas(alpha, levels)?;
-    // Texel k's weights: 1 on its own α where exact, else the hat functions of log α centred
-    // on the levels (non-zero on the two levels around its position, at most).
-    let last = alphas.len() - 1;
-    let positions: Vec<f64> = if exact || last == 0 {
-        Vec::new()
-    } else {
-        let (low, high) = (alphas[0].ln(), alphas[last].ln());
-        alpha
-            .values
-            .iter()
-            .map(|a| ((a.ln() - low) / (high - low) * last as f64).clamp(0.0, last as f64))
-            .collect()
-    };
-    let weight = |k: usize, level: usize| -> f64 {
-        if exact {
-            return if alpha.values[k] == alphas[level] {
-                1.0
-            } else {
-                0.0
-            };
-        }
-        if last == 0 {
-            return 1.0;
-        }
-        let position = positions[k];
-        let below = (position.floor() as usize).min(last - 1);
-        let above = position - below as f64;
-        match level {
-            l if l == below => 1.0 - above,
-            l if l == below + 1 => above,
-            _ => 0.0,
-        }
-    };
+    let weights = LevelWeights::new(density.map(Arc::as_ref), alpha, levels)?;
     let mut result = Vec::new();
-    for (level, &level_alpha) in alphas.iter().enumerate() {
-        // d·w ≤ 1 (both are); the clamp only absorbs rounding.
-        let values: Vec<f64> = (0..width * height)
-            .map(|k| (d(k) * weight(k, level)).clamp(0.0, 1.0))
-            .collect();
+    for (level, &level_alpha) in weights.alphas.iter().enumerate() {
+        let values = weights.values(level);
         match DensityMap::with_filter(width, height, &values, alpha.filter()) {
             Ok(map) => result.push(RoughnessLevel {
                 alpha: Some(level_alpha),

@@ -26,9 +26,14 @@
 //! - **Bounds** ([`DensityMap::max_over`]): an upper bound on d over a footprint, from a
 //!   pyramid of maxima over blocks of 4 × 4 texels and up, for the negligible-query test.
 //!
-//! Memory: about 12.7 bytes per texel (8 for the summed-area table, which also holds the
-//! values, 4 for the table of changes, 0.7 for the pyramid of maxima), at most
-//! [`DensityMap::MAX_TEXELS`] texels.
+//! Memory: at most about 12.7 bytes per texel (8 for the summed-area table, which also holds
+//! the values, 4 for the table of changes, 0.7 for the pyramid of maxima), at most
+//! [`DensityMap::MAX_TEXELS`] texels. A map that is 0 over about a third or more of its square
+//! (a roughness level's d·w_k, a sparse mask) keeps its tables in tiles of 64 × 64 texels and
+//! stores only the tiles that hold a non-zero value, about 0.4 bytes a texel besides
+//! (`density_map/tables.rs`, which derives it): the same integers, so the same answers, bit
+//! for bit. The layout is chosen from the values (tiled where that saves at least a third of
+//! the bytes); [`DensityMap::bytes_for_values`] counts it before building.
 
 use std::fmt;
 
@@ -38,15 +43,18 @@ use crate::footprint::Footprint;
 
 mod bilinear;
 mod polygon;
+mod tables;
 
 use polygon::{clip, polygon_area};
+pub use tables::MapOccupancy;
+use tables::{FIRST_MAX_LEVEL, Layout, MaxPyramid, Tables};
 
 /// Fixed-point scale of stored values: d is held as round(d·2³²).
 const FIXED_ONE: f64 = 4_294_967_296.0;
 
-/// The finest level of the pyramid of maxima: blocks of 4 × 4 texels (the 2 × 2 level would
-/// cost 2 bytes a texel; its blocks are read from the texels instead, at most 16 of them).
-const FIRST_MAX_LEVEL: usize = 2;
+// The finest level of the pyramid of maxima, `tables::FIRST_MAX_LEVEL`, has blocks of 4 × 4
+// texels (the 2 × 2 level would cost 2 bytes a texel; its blocks are read from the texels
+// instead, at most 16 of them).
 
 /// Footprints whose bounding box covers more texels than this get their mass from the
 /// map's mean (as the tree averages footprints over many tiles): integrating them texel by
@@ -149,31 +157,20 @@ impl std::error::Error for DensityMapError {}
 pub struct DensityMap {
     width: usize,
     height: usize,
-    /// `sat[j·(W + 1) + i]`: the sum of the fixed-point texel values q over rows < j and
-    /// columns < i, row j covering v ∈ [j/H, (j + 1)/H) (row 0 at v = 0).
-    sat: Vec<u64>,
-    /// `changes[j·(W + 1) + i]`: the sum over rows < j and columns < i of the texel changes
+    /// The summed-area tables, whole or tiled (`tables.rs`): `sums` at corner (i, j) is the
+    /// sum of the fixed-point texel values q over rows < j and columns < i, row j covering
+    /// v ∈ [j/H, (j + 1)/H) (row 0 at v = 0); `changes` the same sum of the texel changes
     /// g(i, j) = [q(i, j) ≠ q(i + 1, j)] + [q(i, j) ≠ q(i, j + 1)], a neighbour outside the
-    /// map counting as no change.
-    changes: Vec<u32>,
+    /// map counting as no change; `maxima` the maxima of q over blocks of 2^L × 2^L texels,
+    /// L = [`FIRST_MAX_LEVEL`], … until one block holds the map (block (i, j) covers texels
+    /// [i·2^L, (i + 1)·2^L)). Smaller blocks are read from the texels.
+    tables: Tables,
     /// How d is reconstructed from the texels.
     filter: MapFilter,
     /// The value when every texel has it.
     uniform: Option<f64>,
     /// ∫d over the unit square.
     mean: f64,
-    /// Maxima of q over blocks of 2^L × 2^L texels, L = [`FIRST_MAX_LEVEL`], … until one
-    /// block holds the map (level L at index L − [`FIRST_MAX_LEVEL`]; block (i, j) covers
-    /// texels [i·2^L, (i + 1)·2^L)). Smaller blocks are read from the texels.
-    max_levels: Vec<MaxLevel>,
-}
-
-/// One level of the pyramid of maxima.
-#[derive(Clone, Debug, PartialEq)]
-struct MaxLevel {
-    width: usize,
-    height: usize,
-    maxima: Vec<u64>,
 }
 
 impl fmt::Debug for DensityMap {
@@ -239,21 +236,42 @@ impl DensityMap {
     /// keeps one map within a material's budget (`glint_brdf::MAX_MAP_BYTES`).
     pub const MAX_TEXELS: usize = 1 << 28;
 
-    /// The heap memory, in bytes, of a `width` × `height` map: its summed-area table (8 bytes
-    /// a texel), the table of value changes (4 bytes a texel) and the pyramid of maxima (about
-    /// 2/3 of a byte a texel). A function of the size alone, so a material can check its budget
-    /// before it builds a map.
+    /// The most heap memory, in bytes, a `width` × `height` map may hold: its tables whole,
+    /// the summed-area table (8 bytes a texel), the table of value changes (4 bytes a texel)
+    /// and the pyramid of maxima (about 2/3 of a byte a texel). A function of the size alone,
+    /// so a material can bound its budget before it builds a map; a map whose tiled tables
+    /// are smaller holds those ([`Self::bytes_for_values`]).
     #[must_use]
     pub fn bytes_for(width: usize, height: usize) -> usize {
         let corners = (width + 1) * (height + 1);
-        let maxima: usize = pyramid_sizes(width, height).map(|(w, h)| w * h).sum();
+        let maxima: usize = MaxPyramid::sizes(width, height)
+            .iter()
+            .map(|(w, h)| w * h)
+            .sum();
         8 * (corners + maxima) + 4 * corners
     }
 
-    /// The heap memory this map holds, in bytes: [`Self::bytes_for`] its size.
+    /// The heap memory, in bytes, the map of `width` × `height` `values` (as for
+    /// [`Self::new`], and valid) will hold: its tables whole or, where the values are 0 over
+    /// enough of the map, in tiles that leave those regions out (`density_map/tables.rs`).
+    /// What [`Self::heap_bytes`] of the built map says, without building it; 0 for values
+    /// that are all 0 (no map is built from them).
+    #[must_use]
+    pub fn bytes_for_values(width: usize, height: usize, values: &[f64]) -> usize {
+        Tables::bytes_for(&MapOccupancy::of_values(width, height, values))
+    }
+
+    /// [`Self::bytes_for_values`] from the tiles that the values would occupy: what a map of
+    /// values marked into `occupancy` will hold.
+    #[must_use]
+    pub fn bytes_for_occupancy(occupancy: &MapOccupancy) -> usize {
+        Tables::bytes_for(occupancy)
+    }
+
+    /// The heap memory this map holds, in bytes.
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
-        Self::bytes_for(self.width, self.height)
+        self.tables.heap_bytes()
     }
 
     /// A map of `width` × `height` texels from `values` given row by row, **row 0 at the top of
@@ -276,6 +294,18 @@ impl DensityMap {
         values: &[f64],
         filter: MapFilter,
     ) -> Result<Self, DensityMapError> {
+        Self::with_layout(width, height, values, filter, None)
+    }
+
+    /// [`DensityMap::with_filter`] with its tables in `layout` (`None`: the one of fewer
+    /// bytes).
+    fn with_layout(
+        width: usize,
+        height: usize,
+        values: &[f64],
+        filter: MapFilter,
+        layout: Option<Layout>,
+    ) -> Result<Self, DensityMapError> {
         let texels = width.saturating_mul(height);
         if width == 0 || height == 0 || texels > Self::MAX_TEXELS {
             return Err(DensityMapError::InvalidSize { width, height });
@@ -293,49 +323,22 @@ impl DensityMap {
         }
         // Row j (from v = 0) is row H − 1 − j of the values as given.
         let q = |i: usize, j: usize| fixed_point(values[(height - 1 - j) * width + i]);
-        let row_of = |j: usize, row: &mut Vec<u64>| {
-            row.clear();
-            row.extend((0..width).map(|i| q(i, j)));
-        };
-        let stride = width + 1;
-        let mut sat = vec![0u64; (height + 1) * stride];
-        let mut changes = vec![0u32; (height + 1) * stride];
-        let (mut row, mut above) = (Vec::with_capacity(width), Vec::with_capacity(width));
-        row_of(0, &mut row);
-        let first = row[0];
-        let mut uniform = true;
-        for j in 0..height {
-            if j + 1 < height {
-                row_of(j + 1, &mut above);
-            }
-            let (mut row_sum, mut row_changes) = (0u64, 0u32);
-            for i in 0..width {
-                let value = row[i];
-                uniform &= value == first;
-                row_sum += value;
-                row_changes += u32::from(i + 1 < width && row[i + 1] != value)
-                    + u32::from(j + 1 < height && above[i] != value);
-                sat[(j + 1) * stride + i + 1] = sat[j * stride + i + 1] + row_sum;
-                changes[(j + 1) * stride + i + 1] = changes[j * stride + i + 1] + row_changes;
-            }
-            std::mem::swap(&mut row, &mut above);
-        }
-        let total = sat[height * stride + width];
+        let occupancy = MapOccupancy::of_values(width, height, values);
+        let tables = Tables::new(width, height, &q, &occupancy, layout);
+        let total = tables.sums.at(width, height);
         if total == 0 {
             return Err(DensityMapError::Empty);
         }
-        let uniform = uniform.then(|| first as f64 / FIXED_ONE);
+        // No value changes between neighbours: every texel has the first one's value.
+        let uniform = (tables.changes.at(width, height) == 0).then(|| q(0, 0) as f64 / FIXED_ONE);
         let mean = total as f64 / (FIXED_ONE * texels as f64);
-        let max_levels = max_pyramid(&q, width, height);
         Ok(Self {
             width,
             height,
-            sat,
-            changes,
+            tables,
             filter,
             uniform,
             mean,
-            max_levels,
         })
     }
 
@@ -366,12 +369,7 @@ impl DensityMap {
     /// The largest value (as stored).
     #[must_use]
     pub fn max(&self) -> f64 {
-        // The pyramid's last level is one block over the whole map.
-        let top = self
-            .max_levels
-            .last()
-            .map_or(&[][..], |level| &level.maxima);
-        top.iter().copied().max().unwrap_or(0) as f64 / FIXED_ONE
+        self.tables.maxima.top() as f64 / FIXED_ONE
     }
 
     /// d of the texel in `column` and `row`, row 0 at the top as given (as stored).
@@ -380,10 +378,22 @@ impl DensityMap {
         self.fixed(column, self.height - 1 - row) as f64 / FIXED_ONE
     }
 
+    /// Every texel's d (as stored), row by row from the top as values are given: what
+    /// [`Self::texel`] gives for each, in one pass.
+    #[must_use]
+    pub fn texels(&self) -> Vec<f64> {
+        let mut values = Vec::with_capacity(self.width * self.height);
+        for row in 0..self.height {
+            let j = self.height - 1 - row;
+            values.extend((0..self.width).map(|i| self.fixed(i, j) as f64 / FIXED_ONE));
+        }
+        values
+    }
+
     /// The fixed-point value q of texel (i, j), j counted from v = 0: the summed-area table's
     /// second difference.
     fn fixed(&self, i: usize, j: usize) -> u64 {
-        self.rect_sum((i, i + 1), (j, j + 1))
+        self.tables.sums.cell(i, j)
     }
 
     /// The largest q over block (i, j) of 2^`level` × 2^`level` texels: the pyramid's entry, or
@@ -398,8 +408,7 @@ impl DensityMap {
                 .map(|(i, j)| self.fixed(i, j))
                 .max();
         }
-        let blocks = self.max_levels.get(level - FIRST_MAX_LEVEL)?;
-        Some(blocks.maxima[j * blocks.width + i])
+        self.tables.maxima.block(level - FIRST_MAX_LEVEL, i, j)
     }
 
     /// An upper bound on d over the footprint's parallelogram (its bounding box, wrapped):
@@ -474,10 +483,7 @@ impl DensityMap {
 
     /// Σ of fixed-point values over texel columns [i0, i1) × rows [j0, j1).
     fn rect_sum(&self, (i0, i1): (usize, usize), (j0, j1): (usize, usize)) -> u64 {
-        let s = self.width + 1;
-        self.sat[j1 * s + i1] + self.sat[j0 * s + i0]
-            - self.sat[j0 * s + i1]
-            - self.sat[j1 * s + i0]
+        self.tables.sums.rect((i0, i1), (j0, j1))
     }
 
     /// Whether d takes one value over the box [min, min + size]² (inside the unit square): for
@@ -506,10 +512,7 @@ impl DensityMap {
     /// one row is under a texel tall, so it spans fewer than W/H + 2 texels.
     fn texels_constant(&self, (c0, c1): (usize, usize), (r0, r1): (usize, usize)) -> bool {
         let changes = |(i0, i1): (usize, usize), (j0, j1): (usize, usize)| {
-            let s = self.width + 1;
-            self.changes[j1 * s + i1] + self.changes[j0 * s + i0]
-                - self.changes[j0 * s + i1]
-                - self.changes[j1 * s + i0]
+            self.tables.changes.rect((i0, i1), (j0, j1))
         };
         match (c0 < c1, r0 < r1) {
             (false, false) => true,
@@ -696,53 +699,6 @@ fn fixed_point(value: f64) -> u64 {
     (value * FIXED_ONE).round() as u64
 }
 
-/// The width and height in blocks of the pyramid's levels, [`FIRST_MAX_LEVEL`] first, for a map
-/// of `width` × `height` texels: blocks of 2^L texels, until one block covers the map.
-fn pyramid_sizes(width: usize, height: usize) -> impl Iterator<Item = (usize, usize)> {
-    let first = (
-        width.div_ceil(1 << FIRST_MAX_LEVEL),
-        height.div_ceil(1 << FIRST_MAX_LEVEL),
-    );
-    std::iter::successors(Some(first), |&(w, h)| {
-        (w > 1 || h > 1).then(|| (w.div_ceil(2), h.div_ceil(2)))
-    })
-}
-
-/// The pyramid of maxima of q(i, j) over `width` × `height` texels: blocks of
-/// 2^[`FIRST_MAX_LEVEL`] texels, then 2 × 2 blocks of the level below, until one block covers
-/// the map.
-fn max_pyramid(q: &dyn Fn(usize, usize) -> u64, width: usize, height: usize) -> Vec<MaxLevel> {
-    let mut levels: Vec<MaxLevel> = Vec::new();
-    for (next_w, next_h) in pyramid_sizes(width, height) {
-        let mut maxima = vec![0u64; next_w * next_h];
-        match levels.last() {
-            None => {
-                for j in 0..height {
-                    for i in 0..width {
-                        let block =
-                            &mut maxima[(j >> FIRST_MAX_LEVEL) * next_w + (i >> FIRST_MAX_LEVEL)];
-                        *block = (*block).max(q(i, j));
-                    }
-                }
-            }
-            Some(below) => {
-                for j in 0..below.height {
-                    for i in 0..below.width {
-                        let block = &mut maxima[(j / 2) * next_w + i / 2];
-                        *block = (*block).max(below.maxima[j * below.width + i]);
-                    }
-                }
-            }
-        }
-        levels.push(MaxLevel {
-            width: next_w,
-            height: next_h,
-            maxima,
-        });
-    }
-    levels
-}
-
 /// The texel k of `span` where the cumulative mass passes the fraction `u` of the span's total,
 /// and the fraction of k's own mass below that point; `mass(a, b)` is the mass of texels
 /// [a, b), which `span`'s end weights scale at its ends. The cumulative mass of texels
@@ -806,23 +762,179 @@ mod tests {
     use super::*;
     use crate::tea::{TeaRng, unit_pair};
 
-    /// `bytes_for` is what a built map's tables hold, for sizes with odd sides, single rows and
-    /// columns, and powers of two.
+    /// Values with zeros over most of the map: a patchy region in one corner, a diagonal band
+    /// and a few isolated texels (so tiles are empty, full, and touched by one texel).
+    fn mostly_zero(width: usize, height: usize, seed: u32) -> Vec<f64> {
+        let mut rng = TeaRng::new([seed, 3, 2, 1], 0, 8);
+        let levels = [0.125, 0.25, 1.0, 0.6];
+        (0..width * height)
+            .map(|k| {
+                let block = (k % width) / 3 + (k / width) / 2;
+                let patchy = levels[(block + usize::from(rng.next_bits().is_multiple_of(5))) % 4];
+                let (i, j) = (k % width, k / width);
+                let region = i < width / 3 + 1 && j < height / 2 + 1;
+                let band = i + 2 * j == width;
+                let isolated = k % 4099 == 17;
+                if region || band || isolated {
+                    patchy
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// The bytes counted before a map is built are what its tables hold, in both layouts, for
+    /// sizes with odd sides, single rows and columns, powers of two and several tiles; a map
+    /// takes the tiled layout only where it saves at least a third of the bytes, and never
+    /// holds more than [`DensityMap::bytes_for`].
     #[test]
-    fn bytes_for_is_the_tables_length() {
-        for (width, height) in [(1, 1), (1, 7), (9, 1), (5, 3), (16, 16), (33, 17), (64, 1)] {
-            let values: Vec<f64> = (0..width * height)
+    fn the_bytes_counted_before_building_are_the_tables() {
+        let sizes = [
+            (1, 1),
+            (1, 7),
+            (9, 1),
+            (5, 3),
+            (16, 16),
+            (33, 17),
+            (64, 1),
+            (64, 64),
+            (130, 67),
+            (200, 129),
+        ];
+        for (width, height) in sizes {
+            let full: Vec<f64> = (0..width * height)
                 .map(|k| (k % 3 + 1) as f64 / 3.0)
                 .collect();
-            let map = DensityMap::new(width, height, &values).unwrap();
-            let held = 8
-                * (map.sat.len() + map.max_levels.iter().map(|l| l.maxima.len()).sum::<usize>())
-                + 4 * map.changes.len();
-            assert_eq!(map.heap_bytes(), held, "{width} x {height}");
+            for values in [full, mostly_zero(width, height, 4)] {
+                let occupancy = MapOccupancy::of_values(width, height, &values);
+                let pyramid = MaxPyramid::sizes(width, height);
+                let [whole, tiled] = [Layout::Whole, Layout::Tiled].map(|layout| {
+                    let map = DensityMap::with_layout(
+                        width,
+                        height,
+                        &values,
+                        MapFilter::Nearest,
+                        Some(layout),
+                    )
+                    .unwrap();
+                    let counted = layout.bytes(width, height, &occupancy, &pyramid);
+                    assert_eq!(map.heap_bytes(), counted, "{width} x {height} {layout:?}");
+                    counted
+                });
+                let chosen = DensityMap::new(width, height, &values).unwrap();
+                let saves_a_third = 3 * tiled <= 2 * whole;
+                assert_eq!(
+                    chosen.heap_bytes(),
+                    if saves_a_third { tiled } else { whole }
+                );
+                let predicted = DensityMap::bytes_for_values(width, height, &values);
+                assert_eq!(chosen.heap_bytes(), predicted, "{width} x {height}");
+                let mut marked = MapOccupancy::new(width, height);
+                for (k, &value) in values.iter().enumerate() {
+                    marked.mark(k % width, k / width, value);
+                }
+                assert_eq!(DensityMap::bytes_for_occupancy(&marked), predicted);
+                assert!(predicted <= DensityMap::bytes_for(width, height));
+            }
         }
-        // About 12.7 bytes a texel for a large map, as the module docs say.
+        // About 12.7 bytes a texel for a large map stored whole, as the module docs say.
         let per_texel = DensityMap::bytes_for(8192, 8192) as f64 / (8192.0 * 8192.0);
         assert!((12.6..12.7).contains(&per_texel), "{per_texel}");
+    }
+
+    /// A map stored in tiles answers every question exactly as the same map stored whole: the
+    /// tables' entries at every corner and block, and the masses, constancy, placements,
+    /// bounds and footprint integrals of random boxes and footprints (bit for bit), under
+    /// both filters.
+    #[test]
+    fn tiled_tables_answer_what_whole_tables_answer() {
+        for (width, height, seed) in [(130, 67, 1), (64, 128, 2), (257, 191, 3), (20, 300, 4)] {
+            let values = mostly_zero(width, height, seed);
+            for filter in MapFilter::ALL {
+                let build = |layout| {
+                    DensityMap::with_layout(width, height, &values, filter, Some(layout)).unwrap()
+                };
+                let (whole, tiled) = (build(Layout::Whole), build(Layout::Tiled));
+                // Empty tiles are left out of the larger maps.
+                if width * height > 30_000 {
+                    assert!(
+                        tiled.heap_bytes() < whole.heap_bytes(),
+                        "{width} x {height}"
+                    );
+                }
+                assert_eq!((whole.mean, whole.uniform), (tiled.mean, tiled.uniform));
+                for j in 0..=height {
+                    for i in 0..=width {
+                        assert_eq!(whole.tables.sums.at(i, j), tiled.tables.sums.at(i, j));
+                        assert_eq!(whole.tables.changes.at(i, j), tiled.tables.changes.at(i, j));
+                        if i < width && j < height {
+                            let value = fixed_point(values[(height - 1 - j) * width + i]);
+                            assert_eq!(tiled.tables.sums.cell(i, j), value, "texel ({i}, {j})");
+                            assert_eq!(whole.tables.sums.cell(i, j), value, "texel ({i}, {j})");
+                        }
+                    }
+                }
+                for (k, (w, h)) in MaxPyramid::sizes(width, height).into_iter().enumerate() {
+                    for j in 0..h {
+                        for i in 0..w {
+                            let block = |map: &DensityMap| map.tables.maxima.block(k, i, j);
+                            assert_eq!(block(&whole), block(&tiled), "level {k} ({i}, {j})");
+                        }
+                    }
+                }
+                assert_eq!(whole.max(), tiled.max());
+                let mut rng = TeaRng::new([seed, 5, 6, 7], 0, 8);
+                // Rectangles within a tile, across tiles, along the map's edges.
+                for _ in 0..20_000 {
+                    let [a, b] = unit_pair(rng.next_bits());
+                    let [c, d] = unit_pair(rng.next_bits());
+                    let span = |u: f64, v: f64, n: usize| {
+                        let first = (u * n as f64) as usize;
+                        let length = ((v * v * v) * (n - first) as f64) as usize;
+                        (first, (first + length).min(n))
+                    };
+                    let (columns, rows) = (span(a, c, width), span(b, d, height));
+                    assert_eq!(
+                        whole.tables.sums.rect(columns, rows),
+                        tiled.tables.sums.rect(columns, rows)
+                    );
+                    assert_eq!(
+                        whole.tables.changes.rect(columns, rows),
+                        tiled.tables.changes.rect(columns, rows)
+                    );
+                }
+                for k in 0..2000 {
+                    let [a, b] = unit_pair(rng.next_bits());
+                    let [c, d] = unit_pair(rng.next_bits());
+                    let size = [0.003, 0.02, 0.1, 0.4, 1.0][k % 5] * (0.5 + c);
+                    let min = DVec2::new(a * (1.0 - size).max(0.0), b * (1.0 - size).max(0.0));
+                    let size = size.min(1.0);
+                    let footprint = Footprint::new(
+                        DVec2::new(a, b),
+                        DVec2::new(size * (0.2 + c), size * (d - 0.5)),
+                        DVec2::new(size * (0.3 * c - 0.1), size * (0.2 + d)),
+                    )
+                    .unwrap();
+                    let answers = |map: &DensityMap| {
+                        (
+                            map.is_constant_over(min, size),
+                            map.quarter_probabilities(min, size),
+                            map.place(min, size, [c, d]),
+                            map.mean_multiplicity(&footprint, min, size),
+                            map.max_over(&footprint),
+                            map.mass_in(&footprint),
+                            map.value_at(DVec2::new(c, d)),
+                        )
+                    };
+                    assert_eq!(
+                        answers(&whole),
+                        answers(&tiled),
+                        "{filter:?} box {min} {size}"
+                    );
+                }
+            }
+        }
     }
 
     /// A map of `width` × `height` with a few repeated values (so some boxes are constant),

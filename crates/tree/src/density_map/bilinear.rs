@@ -105,11 +105,11 @@ impl DensityMap {
     fn periodic_prefix(&self, c: i64, r: i64) -> i64 {
         let (w, h) = (self.width as i64, self.height as i64);
         if (0..=w).contains(&c) && (0..=h).contains(&r) {
-            return self.sat[r as usize * (self.width + 1) + c as usize] as i64;
+            return self.tables.sums.at(c as usize, r as usize) as i64;
         }
         let (qc, c) = (c.div_euclid(w), c.rem_euclid(w) as usize);
         let (qr, r) = (r.div_euclid(h), r.rem_euclid(h) as usize);
-        let at = |c: usize, r: usize| self.sat[r * (self.width + 1) + c] as i64;
+        let at = |c: usize, r: usize| self.tables.sums.at(c, r) as i64;
         at(c, r)
             + qc * at(self.width, r)
             + qr * at(c, self.height)
