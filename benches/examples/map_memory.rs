@@ -7,9 +7,9 @@
 //! and their count trees) per megatexel.
 //!
 //! The maps: a smooth gradient of α (0.02 to 0.4, log-linear across the map, interpolated
-//! levels), a painted map of three values (a disc and stripes; exact levels), and α that
-//! changes at every texel (97 values cycling; the worst case, where every level occupies every
-//! tile).
+//! levels), the same with a grain of ±15% that changes at every texel, a painted map of three
+//! values (a disc and stripes; exact levels), and α that cycles through 97 values from 0.01 to
+//! 0.31 at every texel (the worst case: every level meets every tile).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -48,6 +48,16 @@ fn main() {
             }
         })
         .collect();
+    // The gradient with a grain of ±15% that changes at every texel (a hash of the texel).
+    let grain: Vec<f64> = gradient
+        .iter()
+        .enumerate()
+        .map(|(k, &alpha)| {
+            let hash = (k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+            let unit = hash as f64 / (1u64 << 24) as f64;
+            (alpha * (0.85 + 0.3 * unit)).clamp(1e-4, 1.0)
+        })
+        .collect();
     let noise: Vec<f64> = (0..texels)
         .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
         .collect();
@@ -60,8 +70,9 @@ fn main() {
     println!("|---|---|---|---|---|---|");
     for (name, alphas) in [
         ("smooth gradient", &gradient),
+        ("gradient with a ±15% grain", &grain),
         ("painted, 3 values", &painted),
-        ("changes at every texel", &noise),
+        ("97 values at every texel", &noise),
     ] {
         let alpha = Arc::new(RoughnessMap::new(side, side, alphas).expect("a valid map"));
         for levels in [4, 8, 16] {
