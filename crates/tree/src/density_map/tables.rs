@@ -24,7 +24,7 @@
 //! (W + 1)(H + 1)/T and again (W + 1)(H + 1)/T entries, about 0.4 bytes a texel for both
 //! summed-area tables. L is 0 over a tile whose texels are all 0: there S is the sum of the
 //! first three terms. Every other tile stores S itself at its (T + 1)² corners (its far edges
-//! included), so that a look-up there reads one entry as the whole table does, and a
+//! included), so that a look-up there reads the tile's place and then one entry, and a
 //! rectangle of the tile's texels reads four entries of one tile. Every entry is the same
 //! integer as the whole table's: a tiled map answers exactly what the same map stored whole
 //! answers, bit for bit.
@@ -44,13 +44,13 @@ use std::ops::{Add, Sub};
 /// log₂ of a tile's side in texels.
 const TILE_SHIFT: u32 = 6;
 
-/// A tile's side in texels: 64 (4096 texels; a tile's tables over a map cost 0.38 bytes a
-/// texel).
+/// A tile's side in texels: 64 (4096 texels; the tables of the tiles' corners, lower rows and
+/// left columns cost about 0.38 bytes a texel for both summed-area tables).
 pub(super) const TILE: usize = 1 << TILE_SHIFT;
 
 const TILE_MASK: usize = TILE - 1;
 
-/// A tile that stores nothing (its entries are 0).
+/// The place of a tile that stores nothing (its L is 0).
 const EMPTY: u32 = u32::MAX;
 
 /// An integer a summed-area table holds.
