@@ -37,7 +37,7 @@
 //!
 //! A map is tiled where that saves at least a third of its bytes ([`Layout::choose`]); both
 //! layouts' bytes are functions of the map's size and of which tiles hold a non-zero value
-//! ([`Occupancy`]), so a material can count a map's bytes before building it.
+//! ([`MapOccupancy`]), so a material can count a map's bytes before building it.
 
 use std::ops::{Add, Sub};
 
@@ -87,9 +87,6 @@ pub struct MapOccupancy {
     tiles_y: usize,
     occupied: Vec<bool>,
 }
-
-/// The tables' name for it.
-pub(super) type Occupancy = MapOccupancy;
 
 impl MapOccupancy {
     /// A `width` × `height` map with no texel marked.
@@ -205,7 +202,7 @@ impl Layout {
     pub(super) fn choose(
         width: usize,
         height: usize,
-        occupancy: &Occupancy,
+        occupancy: &MapOccupancy,
         pyramid: &[(usize, usize)],
     ) -> (Self, usize) {
         let whole = Self::Whole.bytes(width, height, occupancy, pyramid);
@@ -222,7 +219,7 @@ impl Layout {
         self,
         width: usize,
         height: usize,
-        occupancy: &Occupancy,
+        occupancy: &MapOccupancy,
         pyramid: &[(usize, usize)],
     ) -> usize {
         let corners = (width + 1) * (height + 1);
@@ -232,8 +229,8 @@ impl Layout {
                 (u64::BYTES + u32::BYTES) * corners + u64::BYTES * maxima
             }
             Self::Tiled => {
-                let occupied = Occupancy::count(&occupancy.occupied);
-                let changing = Occupancy::count(&occupancy.change_tiles());
+                let occupied = MapOccupancy::count(&occupancy.occupied);
+                let changing = MapOccupancy::count(&occupancy.change_tiles());
                 let maxima: usize = pyramid
                     .iter()
                     .enumerate()
@@ -411,7 +408,7 @@ impl<T: Entry> PrefixBuilder<T> {
     fn tiled(width: usize, height: usize, stored: &[bool]) -> Self {
         let (tiles_x, tiles_y) = (tiles_along(width), tiles_along(height));
         let directory = places(stored);
-        let stored_tiles = Occupancy::count(stored);
+        let stored_tiles = MapOccupancy::count(stored);
         let table = TiledPrefix {
             stride: width + 1,
             tiles_x,
@@ -502,10 +499,9 @@ pub(super) struct MaxPyramid {
 struct MaxLevel {
     /// Blocks per row.
     width: usize,
-    /// Whole: `maxima[j·width + i]`; tiled: each occupied tile's blocks, row-major within it.
+    /// Whole: `maxima[j·width + i]`; by tile (levels finer than a tile, under the tiled
+    /// layout): each occupied tile's blocks, row-major within it.
     maxima: Vec<u64>,
-    /// Whether this level is stored by tile.
-    tiled: bool,
 }
 
 impl MaxPyramid {
@@ -528,7 +524,7 @@ impl MaxPyramid {
         width: usize,
         height: usize,
         layout: Layout,
-        occupancy: &Occupancy,
+        occupancy: &MapOccupancy,
     ) -> Self {
         // Every level whole first, each from the one below.
         let sizes = Self::sizes(width, height);
@@ -553,13 +549,8 @@ impl MaxPyramid {
                     (Some((places, tiles_x)), Some(blocks)) => MaxLevel {
                         width,
                         maxima: Self::by_tile(&maxima, width, k, places, *tiles_x, blocks),
-                        tiled: true,
                     },
-                    _ => MaxLevel {
-                        width,
-                        maxima,
-                        tiled: false,
-                    },
+                    _ => MaxLevel { width, maxima },
                 },
             )
             .collect();
@@ -594,10 +585,9 @@ impl MaxPyramid {
     /// The largest q over block (i, j) of the pyramid's k-th level; `None` past its levels.
     pub(super) fn block(&self, k: usize, i: usize, j: usize) -> Option<u64> {
         let level = self.levels.get(k)?;
-        if !level.tiled {
+        let (Some((places, tiles_x)), Some(_)) = (&self.tiles, fine_blocks_per_tile(k)) else {
             return Some(level.maxima[j * level.width + i]);
-        }
-        let (places, tiles_x) = self.tiles.as_ref()?;
+        };
         let shift = TILE_SHIFT as usize - FIRST_MAX_LEVEL - k;
         let side = 1 << shift;
         Some(match places[(j >> shift) * tiles_x + (i >> shift)] {
@@ -640,7 +630,7 @@ impl Tables {
         width: usize,
         height: usize,
         q: &dyn Fn(usize, usize) -> u64,
-        occupancy: &Occupancy,
+        occupancy: &MapOccupancy,
         layout: Option<Layout>,
     ) -> Self {
         let layout = layout.unwrap_or_else(|| {
@@ -702,7 +692,7 @@ impl Tables {
 
     /// The bytes the tables of a map with `occupancy` will hold (0 for a map of zeros, which
     /// is not built).
-    pub(super) fn bytes_for(occupancy: &Occupancy) -> usize {
+    pub(super) fn bytes_for(occupancy: &MapOccupancy) -> usize {
         if occupancy.is_empty() {
             return 0;
         }
