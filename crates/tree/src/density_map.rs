@@ -243,12 +243,7 @@ impl DensityMap {
     /// are smaller holds those ([`Self::bytes_for_values`]).
     #[must_use]
     pub fn bytes_for(width: usize, height: usize) -> usize {
-        let corners = (width + 1) * (height + 1);
-        let maxima: usize = MaxPyramid::sizes(width, height)
-            .iter()
-            .map(|(w, h)| w * h)
-            .sum();
-        8 * (corners + maxima) + 4 * corners
+        Layout::whole_bytes(width, height, &MaxPyramid::sizes(width, height))
     }
 
     /// The heap memory, in bytes, the map of `width` × `height` `values` (as for

@@ -214,6 +214,14 @@ impl Layout {
         }
     }
 
+    /// The bytes a map's tables hold whole: both summed-area tables at every corner and the
+    /// pyramid's every block.
+    pub(super) fn whole_bytes(width: usize, height: usize, pyramid: &[(usize, usize)]) -> usize {
+        let corners = (width + 1) * (height + 1);
+        let maxima: usize = pyramid.iter().map(|(w, h)| w * h).sum();
+        (u64::BYTES + u32::BYTES) * corners + u64::BYTES * maxima
+    }
+
     /// The bytes a map's tables hold under this layout.
     pub(super) fn bytes(
         self,
@@ -222,12 +230,8 @@ impl Layout {
         occupancy: &MapOccupancy,
         pyramid: &[(usize, usize)],
     ) -> usize {
-        let corners = (width + 1) * (height + 1);
         match self {
-            Self::Whole => {
-                let maxima: usize = pyramid.iter().map(|(w, h)| w * h).sum();
-                (u64::BYTES + u32::BYTES) * corners + u64::BYTES * maxima
-            }
+            Self::Whole => Self::whole_bytes(width, height, pyramid),
             Self::Tiled => {
                 let occupied = MapOccupancy::count(&occupancy.occupied);
                 let changing = MapOccupancy::count(&occupancy.change_tiles());
