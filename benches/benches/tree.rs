@@ -7,7 +7,7 @@ use std::sync::Arc;
 use glint_benches::{TABLE1, production_density_values, table1_mapped_workload, table1_workload};
 use glint_tree::sampling::{MultinomialMode, multinomial4, multinomial4_equal_by_bits};
 use glint_tree::tea::{DEFAULT_ROUNDS, TeaRng, encrypt, encrypt_x4};
-use glint_tree::{DensityMap, MapFilter, MultinomialMode as Mode, QueryScratch};
+use glint_tree::{DensityMap, Footprint, MapFilter, MultinomialMode as Mode, QueryScratch};
 use std::hint::black_box;
 
 const POOL: usize = 1024;
@@ -80,6 +80,35 @@ fn tree(c: &mut Criterion) {
                 })
             },
         );
+    }
+    // ∫d over a footprint (what tint means and Eq. 10's scale ask a map): rotated
+    // parallelograms 8 to 200 texels across on the 1024² production map, wrapped at random
+    // positions.
+    let values = production_density_values(side);
+    for filter in [MapFilter::Nearest, MapFilter::Bilinear] {
+        let map = DensityMap::with_filter(side, side, &values, filter).expect("valid");
+        let mut rng = glint_tests::SplitMix64::new(31);
+        let footprints: Vec<Footprint> = (0..POOL)
+            .map(|_| {
+                let [u, v, width, turn] = rng.uniforms::<4>();
+                let width = (8.0 + 192.0 * width) / side as f64;
+                let (sin, cos) = (std::f64::consts::FRAC_PI_2 * turn).sin_cos();
+                let dx = width * glam::DVec2::new(cos, sin);
+                let dy = 0.7 * width * glam::DVec2::new(-sin, cos);
+                Footprint::new(glam::DVec2::new(u, v), dx, dy).expect("finite")
+            })
+            .collect();
+        let name = match filter {
+            MapFilter::Nearest => "density_map_mass_in_1024",
+            MapFilter::Bilinear => "density_map_mass_in_1024_bilinear",
+        };
+        let mut i = 0;
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                i = (i + 1) % POOL;
+                map.mass_in(black_box(&footprints[i]))
+            })
+        });
     }
     let key = [1, 2, 3, 4];
     let mut counter = 0u32;

@@ -3,15 +3,61 @@
 
 use glam::DVec2;
 
+/// A convex polygon of at most [`Polygon::CAPACITY`] vertices, held in place (clipping runs
+/// once per texel a footprint's edges cut, where a heap allocation cost more than the cut). A
+/// parallelogram cut by two strips has at most eight vertices: each cut of a convex polygon
+/// adds at most one.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Polygon {
+    points: [DVec2; Polygon::CAPACITY],
+    len: usize,
+}
+
+impl Polygon {
+    /// Twice the eight of exact arithmetic, for vertices that rounding puts on both sides of
+    /// a cut. Beyond it a vertex is dropped rather than the query stopped: only a polygon
+    /// whose sides rounding has folded can reach it.
+    const CAPACITY: usize = 16;
+
+    fn push(&mut self, point: DVec2) {
+        debug_assert!(
+            self.len < Self::CAPACITY,
+            "a clipped footprint has at most 8 vertices"
+        );
+        if self.len < Self::CAPACITY {
+            self.points[self.len] = point;
+            self.len += 1;
+        }
+    }
+}
+
+impl std::ops::Deref for Polygon {
+    type Target = [DVec2];
+
+    fn deref(&self) -> &[DVec2] {
+        &self.points[..self.len]
+    }
+}
+
+impl std::ops::DerefMut for Polygon {
+    fn deref_mut(&mut self) -> &mut [DVec2] {
+        &mut self.points[..self.len]
+    }
+}
+
 /// The convex polygon `points` cut to where both `inside_a` and `inside_b` are ≥ 0
-/// (Sutherland–Hodgman, each an affine function of the point).
+/// (Sutherland–Hodgman, each an affine function of the point); `points` is a parallelogram
+/// or a polygon cut from one by an earlier clip (see [`Polygon`]).
 pub(super) fn clip(
     points: &[DVec2],
     inside_a: impl Fn(DVec2) -> f64,
     inside_b: impl Fn(DVec2) -> f64,
-) -> Vec<DVec2> {
+) -> Polygon {
     let once = |points: &[DVec2], inside: &dyn Fn(DVec2) -> f64| {
-        let mut out = Vec::with_capacity(points.len() + 2);
+        let mut out = Polygon {
+            points: [DVec2::ZERO; Polygon::CAPACITY],
+            len: 0,
+        };
         for (k, &p) in points.iter().enumerate() {
             let q = points[(k + 1) % points.len()];
             let (fp, fq) = (inside(p), inside(q));
@@ -25,10 +71,65 @@ pub(super) fn clip(
         out
     };
     let first = once(points, &inside_a);
-    if first.len() < 3 {
+    if first.len < 3 {
         return first;
     }
     once(&first, &inside_b)
+}
+
+/// Where the horizontal line at height `y` crosses the convex polygon `points`: its
+/// (leftmost, rightmost) x, or `None` if the line misses the polygon.
+pub(super) fn chord_at(points: &[DVec2], y: f64) -> Option<(f64, f64)> {
+    let mut chord: Option<(f64, f64)> = None;
+    let mut include = |x: f64| {
+        chord = Some(chord.map_or((x, x), |(left, right)| (left.min(x), right.max(x))));
+    };
+    for (k, &p) in points.iter().enumerate() {
+        let q = points[(k + 1) % points.len()];
+        if y < p.y.min(q.y) || y > p.y.max(q.y) {
+            continue;
+        }
+        if p.y == q.y {
+            include(p.x);
+            include(q.x);
+        } else {
+            include(p.x + (q.x - p.x) * ((y - p.y) / (q.y - p.y)));
+        }
+    }
+    chord
+}
+
+/// The columns c that the polygon `points` meets, from its leftmost to its rightmost point,
+/// where column c spans [(c + `offset`) / `columns_per_unit`, (c + 1 + `offset`) /
+/// `columns_per_unit`] in the polygon's units.
+pub(super) fn columns_met(
+    points: &[DVec2],
+    columns_per_unit: f64,
+    offset: f64,
+) -> std::ops::Range<i64> {
+    let (left, right) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, r), p| {
+            (l.min(p.x), r.max(p.x))
+        });
+    let column = |x: f64| x * columns_per_unit - offset;
+    column(left).floor() as i64..column(right).ceil() as i64
+}
+
+/// The columns c (texel [c, c + 1) along x, in the units of `points`) whose whole texel
+/// [c, c + 1) × [y0, y1] lies in the convex polygon `points`, as c0..c1 (empty if none).
+/// A rectangle lies in a convex polygon exactly when its four corners do, and the corners on
+/// a horizontal line lie in it when they lie within its chord there.
+pub(super) fn whole_columns(points: &[DVec2], y0: f64, y1: f64) -> std::ops::Range<i64> {
+    match (chord_at(points, y0), chord_at(points, y1)) {
+        (Some((left0, right0)), Some((left1, right1))) => {
+            let (left, right) = (left0.max(left1), right0.min(right1));
+            let first = left.ceil() as i64;
+            let end = right.floor() as i64;
+            first..end.max(first)
+        }
+        _ => 0..0,
+    }
 }
 
 /// The area of a simple polygon (shoelace).
