@@ -47,7 +47,7 @@ mod bilinear;
 mod polygon;
 mod tables;
 
-use polygon::{clip, columns_met, polygon_area, whole_columns};
+use polygon::{clip, columns_met, polygon_area, whole_columns, within};
 pub use tables::MapOccupancy;
 use tables::{FIRST_MAX_LEVEL, Layout, MaxPyramid, Tables};
 
@@ -681,11 +681,12 @@ impl DensityMap {
             }
             let j = row.rem_euclid(self.height as i64) as usize;
             let met = columns_met(&strip, scale.x, 0.0);
-            let inside = whole_columns(&in_texels, row as f64, (row + 1) as f64);
-            let inside = inside.start.max(met.start)..inside.end.min(met.end);
+            let inside = within(
+                whole_columns(&in_texels, row as f64, (row + 1) as f64),
+                &met,
+            );
             whole += self.row_sum(j, inside.clone());
-            let edges = (met.start..inside.start.max(met.start))
-                .chain(inside.end.max(inside.start)..met.end);
+            let edges = (met.start..inside.start).chain(inside.end..met.end);
             for column in edges {
                 let (x0, x1) = (column as f64 / scale.x, (column + 1) as f64 / scale.x);
                 let i = column.rem_euclid(self.width as i64) as usize;
@@ -719,17 +720,29 @@ impl DensityMap {
     }
 }
 
-/// 400 footprints 0.3 to 60 texels across (of a map `texels` wide) at every angle, every
-/// fourth axis-aligned and every fifth a sliver, at positions over several tiles: for tests
-/// of the masses over footprints.
+/// 400 footprints 0.3 to 60 texels across (of a `width` × `height` map) at every angle,
+/// every fourth axis-aligned, every fifth a sliver and every seventh with its corners on
+/// texel corners, at positions over several tiles: for tests of the masses over footprints.
 #[cfg(test)]
-fn footprints_of_every_shape(texels: usize, seed: u32) -> Vec<Footprint> {
+fn footprints_of_every_shape((width, height): (usize, usize), seed: u32) -> Vec<Footprint> {
     let mut rng = crate::tea::TeaRng::new([seed, 5, 5, 5], 0, 8);
     let mut uniforms = || crate::tea::unit_pair(rng.next_bits());
+    let texel = DVec2::new(1.0 / width as f64, 1.0 / height as f64);
     (0..400)
         .map(|k| {
             let ([u, v], [size, turn], [aspect, thin]) = (uniforms(), uniforms(), uniforms());
-            let across = (0.3 + 60.0 * size * size) / texels as f64;
+            if k % 7 == 0 {
+                // Whole texels: a corner at a texel corner, sides of 1 to 40 texels.
+                let corner = (DVec2::new(u, v) * 3.0 - 1.0) / texel;
+                let sides = (DVec2::new(size, aspect) * 40.0).ceil();
+                let centre = (corner.floor() + 0.5 * sides) * texel;
+                let (dx, dy) = (
+                    DVec2::new(sides.x * texel.x, 0.0),
+                    DVec2::new(0.0, sides.y * texel.y),
+                );
+                return Footprint::new(centre, dx, dy).expect("finite");
+            }
+            let across = (0.3 + 60.0 * size * size) / width.max(height) as f64;
             let (sin, cos) = (std::f64::consts::TAU * turn).sin_cos();
             let (sin, cos) = if k % 4 == 0 { (0.0, 1.0) } else { (sin, cos) };
             let aspect = if k % 5 == 0 {
@@ -1257,7 +1270,7 @@ mod tests {
     /// The mass row by row (whole texels from the summed-area table, only the cut ones
     /// clipped) is the sum of every texel of the bounding box clipped to the parallelogram:
     /// footprints 0.3 to 60 texels across at every angle, thin ones, wrapped across the
-    /// square's edges and over several tiles.
+    /// square's edges and over several tiles, and footprints whose corners are texel corners.
     #[test]
     fn whole_texels_add_what_clipping_them_adds() {
         let every_texel_clipped = |map: &DensityMap, footprint: &Footprint| {
@@ -1283,7 +1296,7 @@ mod tests {
         };
         for (w, h, seed) in [(11, 6, 1), (64, 48, 2), (5, 40, 3)] {
             let (map, _) = patchy(w, h, seed);
-            for footprint in footprints_of_every_shape(w.max(h), seed) {
+            for footprint in footprints_of_every_shape((w, h), seed) {
                 let fast = map.mass_in(&footprint);
                 let reference = every_texel_clipped(&map, &footprint);
                 assert!(

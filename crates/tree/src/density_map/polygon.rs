@@ -4,9 +4,7 @@
 use glam::DVec2;
 
 /// A convex polygon of at most [`Polygon::CAPACITY`] vertices, held in place (clipping runs
-/// once per texel a footprint's edges cut, where a heap allocation cost more than the cut). A
-/// parallelogram cut by two strips has at most eight vertices: each cut of a convex polygon
-/// adds at most one.
+/// once per texel a footprint's edges cut, where a heap allocation cost more than the cut).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Polygon {
     points: [DVec2; Polygon::CAPACITY],
@@ -14,15 +12,16 @@ pub(super) struct Polygon {
 }
 
 impl Polygon {
-    /// Twice the eight of exact arithmetic, for vertices that rounding puts on both sides of
-    /// a cut. Beyond it a vertex is dropped rather than the query stopped: only a polygon
-    /// whose sides rounding has folded can reach it.
+    /// A cut keeps the k vertices on its inner side and adds one per change of side, at most
+    /// 2·min(k, n − k) of them, so an n-gon leaves at most ⌊3n/2⌋ vertices whatever rounding
+    /// does to the sides (2 changes and n + 1 vertices in exact arithmetic): a parallelogram
+    /// cut by two strips (four cuts) leaves at most 6, 9, then 13.
     const CAPACITY: usize = 16;
 
     fn push(&mut self, point: DVec2) {
         debug_assert!(
             self.len < Self::CAPACITY,
-            "a clipped footprint has at most 8 vertices"
+            "four cuts leave at most 13 vertices"
         );
         if self.len < Self::CAPACITY {
             self.points[self.len] = point;
@@ -75,6 +74,16 @@ pub(super) fn clip(
         return first;
     }
     once(&first, &inside_b)
+}
+
+/// The part of `columns` within `met`, empty at `met`'s start if none (the columns a row's
+/// strip meets, which the whole ones and the cut ones then split between them).
+pub(super) fn within(
+    columns: std::ops::Range<i64>,
+    met: &std::ops::Range<i64>,
+) -> std::ops::Range<i64> {
+    let start = columns.start.max(met.start).min(met.end);
+    start..columns.end.min(met.end).max(start)
 }
 
 /// Where the horizontal line at height `y` crosses the convex polygon `points`: its
