@@ -191,23 +191,32 @@ impl RgbImage {
         let (width, height) = (info.width as usize, info.height as usize);
         check_size(width, height)?;
         let row_samples = width * channels;
-        // Every sample code's decoded value, once (the sRGB curve costs a power per sample
-        // otherwise: an eighth of a 4096²-texel map's load).
-        let largest_code = if bytes_per_sample == 2 { 65535 } else { 255 };
-        let decoded: Vec<f64> = (0..=largest_code)
-            .map(|code| decode(f64::from(code) / f64::from(largest_code)))
-            .collect();
+        // Every sample code's decoded value, once, where the image has more samples than codes
+        // (the sRGB curve costs a power per sample: an eighth of a 4096²-texel map's load).
+        let largest_code: u16 = if bytes_per_sample == 2 { 65535 } else { 255 };
+        let value_of = |code: u16| decode(f64::from(code) / f64::from(largest_code));
+        let decoded: Vec<f64> = if width * height * channels > usize::from(largest_code) {
+            (0..=largest_code).map(value_of).collect()
+        } else {
+            Vec::new()
+        };
+        let sample = |code: u16| {
+            decoded
+                .get(usize::from(code))
+                .copied()
+                .unwrap_or_else(|| value_of(code))
+        };
         let mut pixels = Vec::with_capacity(width * height);
         for row in buffer.chunks(info.line_size.max(1)).take(height) {
             let samples: Vec<f64> = if bytes_per_sample == 2 {
                 row.chunks_exact(2)
                     .take(row_samples)
-                    .map(|b| decoded[usize::from(u16::from_be_bytes([b[0], b[1]]))])
+                    .map(|b| sample(u16::from_be_bytes([b[0], b[1]])))
                     .collect()
             } else {
                 row.iter()
                     .take(row_samples)
-                    .map(|&b| decoded[usize::from(b)])
+                    .map(|&b| sample(u16::from(b)))
                     .collect()
             };
             if samples.len() < row_samples {
@@ -718,13 +727,16 @@ mod tests {
     }
 
     /// Every 8-bit code, and 16-bit codes across the range, decode to the transfer function of
-    /// code / (2^bits − 1) bit for bit: sRGB through `srgb_to_linear`, linear as the fraction.
+    /// code / (2^bits − 1) bit for bit: sRGB through `srgb_to_linear`, linear as the fraction
+    /// (the 8-bit image, of more samples than codes, through the table of codes; the 16-bit one
+    /// code by code).
     #[test]
     fn png_codes_decode_by_the_transfer_function() {
-        let codes_16: Vec<u16> = (0..=65535u32)
+        let mut codes_16: Vec<u16> = (0..=65535u32)
             .step_by(257 * 3 + 1)
             .map(|c| c as u16)
             .collect();
+        codes_16.push(65535);
         for sixteen in [false, true] {
             let codes: Vec<u32> = if sixteen {
                 codes_16.iter().map(|&c| u32::from(c)).collect()
