@@ -22,13 +22,13 @@
 //!
 //! **Accuracy and cost** (`the_table_is_the_quadrature`, halfway between nodes against the
 //! double integral): |ΔΛ|/(1 + Λ) ≤ 1.3e-7 for isotropic lobes and (α_x, α_y) = (0.1, 0.4),
-//! 1.1e-6 for (1, 0.5), 2.6e-3 for the wedge (10⁻⁴, 1). A table takes 15–30 ms isotropic, 0.4–0.8
-//! s of CPU anisotropic (release build), once per roughness per process, its azimuth rows on
-//! every core (the ornaments scene at 32 × 18 pixels, whose one anisotropic lobe's table is
-//! most of its run, takes 0.60–0.62 s instead of 0.85–0.93 on two cores). One table is built
-//! at a time, and threads that need it wait for it rather than build it again.
-//! [`REMEMBERED_TABLES`] are kept, and each thread holds the last it used, so a lookup takes
-//! no lock.
+//! 1.1e-6 for (1, 0.5), 2.6e-3 for the wedge (10⁻⁴, 1). A table takes 15–30 ms isotropic,
+//! 0.4–0.8 s of CPU anisotropic (release build), once per roughness per process, its azimuth
+//! rows on up to [`BUILD_THREADS`] cores (the ornaments scene at 32 × 18 pixels, whose one
+//! anisotropic lobe's table is most of its run, takes 0.60–0.62 s instead of 0.85–0.93 on two
+//! cores). One table is built at a time, and threads that need it wait for it rather than
+//! build it again. [`REMEMBERED_TABLES`] are kept, and each thread holds the last it used, so
+//! a lookup takes no lock.
 
 use std::cell::RefCell;
 use std::sync::{Arc, Mutex};
@@ -224,14 +224,21 @@ impl SmithTable {
                 .collect()
         };
         let mut rows: Vec<(usize, Vec<f64>)> = std::thread::scope(|scope| {
+            // A thread the system refuses leaves its rows to this one.
             let handles: Vec<_> = (1..threads)
-                .map(|first| scope.spawn(move || rows_of(first)))
+                .map(|first| {
+                    let spawned = std::thread::Builder::new()
+                        .spawn_scoped(scope, move || rows_of(first))
+                        .ok();
+                    (first, spawned)
+                })
                 .collect();
             let mut rows = rows_of(0);
-            for handle in handles {
-                match handle.join() {
-                    Ok(part) => rows.extend(part),
-                    Err(panic) => std::panic::resume_unwind(panic),
+            for (first, handle) in handles {
+                match handle.map(|handle| handle.join()) {
+                    Some(Ok(part)) => rows.extend(part),
+                    Some(Err(panic)) => std::panic::resume_unwind(panic),
+                    None => rows.extend(rows_of(first)),
                 }
             }
             rows
