@@ -368,11 +368,14 @@ impl DiscreteBrdf {
                 points: parameters.pdf_points,
             });
         }
-        MapBytes::of(&parameters)?.check()?;
+        // The levels' weights are made once: the budget counts their maps, then they are built.
+        let level_weights = MapBytes::level_weights(&parameters)?;
+        MapBytes::with_level_weights(&parameters, level_weights.as_ref()).check()?;
         let levels = roughness_levels(
             parameters.density_map.as_ref(),
             parameters.alpha_map.as_deref(),
             parameters.roughness_levels,
+            level_weights,
         )?;
         let layers = levels
             .into_iter()

@@ -56,6 +56,35 @@ impl MapBytes {
     /// Those of the roughness levels' count ([`BrdfError::InvalidRoughnessLevels`],
     /// [`BrdfError::TooFewRoughnessLevels`]).
     pub fn of(parameters: &GlintParameters) -> Result<Self, BrdfError> {
+        Ok(Self::with_level_weights(
+            parameters,
+            Self::level_weights(parameters)?.as_ref(),
+        ))
+    }
+
+    /// The roughness levels' weights that [`MapBytes::of`] counts the levels' maps from: over
+    /// the density map when it has the roughness map's size (else the material is refused
+    /// with `MapSizesDiffer`, and the levels are counted without it); `None` without a
+    /// roughness map. [`crate::DiscreteBrdf::new`] builds the levels from the same weights.
+    ///
+    /// # Errors
+    /// Those of [`MapBytes::of`].
+    pub(crate) fn level_weights(
+        parameters: &GlintParameters,
+    ) -> Result<Option<LevelWeights<'_>>, BrdfError> {
+        let Some(alpha) = &parameters.alpha_map else {
+            return Ok(None);
+        };
+        let density = (parameters.density_map.as_deref()).filter(|d| d.size() == alpha.size());
+        LevelWeights::new(density, alpha, parameters.roughness_levels).map(Some)
+    }
+
+    /// [`MapBytes::of`] with the roughness levels' weights already made
+    /// ([`MapBytes::level_weights`]).
+    pub(crate) fn with_level_weights(
+        parameters: &GlintParameters,
+        level_weights: Option<&LevelWeights>,
+    ) -> Self {
         let mut bytes = Self::default();
         let density = parameters.density_map.as_deref();
         if let Some(density) = density {
@@ -72,21 +101,16 @@ impl MapBytes {
                     .sum();
             }
         }
-        if let Some(alpha) = &parameters.alpha_map {
+        if let (Some(alpha), Some(weights)) = (&parameters.alpha_map, level_weights) {
             let (width, height) = alpha.size();
             bytes.given += alpha.heap_bytes() as u64;
             bytes.roughness = Some((width, height, parameters.roughness_levels));
-            // The levels are built over the density map only when the sizes agree (else the
-            // material is refused with `MapSizesDiffer`; count the levels without it).
-            let density = density.filter(|d| d.size() == (width, height));
-            let occupancies =
-                LevelWeights::new(density, alpha, parameters.roughness_levels)?.occupancies();
-            for occupancy in occupancies.iter().filter(|o| !o.is_empty()) {
+            for occupancy in weights.occupancies().iter().filter(|o| !o.is_empty()) {
                 bytes.level_maps += 1;
                 bytes.levels += DensityMap::bytes_for_occupancy(occupancy) as u64;
             }
         }
-        Ok(bytes)
+        bytes
     }
 
     /// The total.

@@ -501,7 +501,8 @@ impl<'a> LevelWeights<'a> {
 /// The roughness levels of a material with density map `density` and roughness map `alpha`,
 /// at most `levels` of them (see the module docs); levels whose density is 0 everywhere are
 /// left out. Without a roughness map, one level: the material's α and its density map. The
-/// levels' density maps are built one at a time (one map's texels at once besides them).
+/// levels' density maps are built one at a time (one map's texels at once besides them), from
+/// `weights` when the caller has made them (`LevelWeights::new` of the same maps).
 ///
 /// # Errors
 /// [`BrdfError::MapSizesDiffer`] when both maps are given with different sizes; those of
@@ -510,6 +511,7 @@ pub(crate) fn roughness_levels(
     density: Option<&Arc<DensityMap>>,
     alpha: Option<&RoughnessMap>,
     levels: usize,
+    weights: Option<LevelWeights>,
 ) -> Result<Vec<RoughnessLevel>, BrdfError> {
     if !(1..=MAX_ROUGHNESS_LEVELS).contains(&levels) {
         return Err(BrdfError::InvalidRoughnessLevels { levels });
@@ -537,7 +539,10 @@ pub(crate) fn roughness_levels(
             alpha: alpha.filter(),
         });
     }
-    let weights = LevelWeights::new(density.map(Arc::as_ref), alpha, levels)?;
+    let weights = match weights {
+        Some(weights) => weights,
+        None => LevelWeights::new(density.map(Arc::as_ref), alpha, levels)?,
+    };
     let mut result = Vec::new();
     for (level, &level_alpha) in weights.alphas.iter().enumerate() {
         let values = weights.values(level);
