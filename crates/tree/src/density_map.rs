@@ -376,13 +376,22 @@ impl DensityMap {
     }
 
     /// Every texel's d (as stored), row by row from the top as values are given: what
-    /// [`Self::texel`] gives for each, in one pass.
+    /// [`Self::texel`] gives for each, in one pass. Each row of the summed-area table is read
+    /// once: texel (i, j)'s q is the difference of two columns' sums up to rows j + 1 and j.
     #[must_use]
     pub fn texels(&self) -> Vec<f64> {
-        let mut values = Vec::with_capacity(self.width * self.height);
-        for row in 0..self.height {
-            let j = self.height - 1 - row;
-            values.extend((0..self.width).map(|i| self.fixed(i, j) as f64 / FIXED_ONE));
+        let sums = &self.tables.sums;
+        let corners = |j: usize| -> Vec<u64> { (0..=self.width).map(|i| sums.at(i, j)).collect() };
+        let mut values = vec![0.0; self.width * self.height];
+        let mut below = corners(0);
+        for j in 0..self.height {
+            let above = corners(j + 1);
+            let row = &mut values[(self.height - 1 - j) * self.width..][..self.width];
+            for (i, value) in row.iter_mut().enumerate() {
+                let q = (above[i + 1] - above[i]) - (below[i + 1] - below[i]);
+                *value = q as f64 / FIXED_ONE;
+            }
+            below = above;
         }
         values
     }
@@ -1264,6 +1273,36 @@ mod tests {
                 (exact - reference).abs() < 0.01 * footprint.area(),
                 "{uv} {dx} {dy}: {exact} against {reference}"
             );
+        }
+    }
+
+    /// Every texel's value in one pass is the texel's own, for maps stored whole and tiled.
+    #[test]
+    fn texels_are_each_texels_value() {
+        let (patchy_map, _) = patchy(37, 23, 4);
+        // 0 outside one corner, stored whole and tiled (most of its 64 × 64 tiles empty).
+        let (w, h) = (300, 200);
+        let values: Vec<f64> = (0..w * h)
+            .map(|k| {
+                if k % w < 70 && k / w < 90 {
+                    ((k * 7) % 11) as f64 / 10.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let build = |layout| {
+            DensityMap::with_layout(w, h, &values, MapFilter::Nearest, Some(layout)).unwrap()
+        };
+        let (whole, tiled) = (build(Layout::Whole), build(Layout::Tiled));
+        assert!(matches!(tiled.tables.sums, tables::PrefixTable::Tiled(_)));
+        for map in [&patchy_map, &whole, &tiled] {
+            let texels = map.texels();
+            for row in 0..map.height {
+                for column in 0..map.width {
+                    assert_eq!(texels[row * map.width + column], map.texel(column, row));
+                }
+            }
         }
     }
 
