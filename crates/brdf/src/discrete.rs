@@ -373,9 +373,8 @@ impl DiscreteBrdf {
         MapBytes::with_level_weights(&parameters, level_weights.as_ref()).check()?;
         let levels = roughness_levels(
             parameters.density_map.as_ref(),
-            parameters.alpha_map.as_deref(),
-            parameters.roughness_levels,
             level_weights,
+            parameters.roughness_levels,
         )?;
         let layers = levels
             .into_iter()

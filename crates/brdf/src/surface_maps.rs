@@ -498,30 +498,30 @@ impl<'a> LevelWeights<'a> {
     }
 }
 
-/// The roughness levels of a material with density map `density` and roughness map `alpha`,
-/// at most `levels` of them (see the module docs); levels whose density is 0 everywhere are
-/// left out. Without a roughness map, one level: the material's α and its density map. The
-/// levels' density maps are built one at a time (one map's texels at once besides them), from
-/// `weights` when the caller has made them (`LevelWeights::new` of the same maps).
+/// The roughness levels of a material with density map `density` and the roughness map's
+/// level `weights` (`MapBytes::level_weights`: at most `levels` of them, see the module docs);
+/// levels whose density is 0 everywhere are left out. Without a roughness map, one level: the
+/// material's α and its density map. The levels' density maps are built one at a time (one
+/// map's texels at once besides them).
 ///
 /// # Errors
 /// [`BrdfError::MapSizesDiffer`] when both maps are given with different sizes; those of
 /// [`level_alphas`].
 pub(crate) fn roughness_levels(
     density: Option<&Arc<DensityMap>>,
-    alpha: Option<&RoughnessMap>,
-    levels: usize,
     weights: Option<LevelWeights>,
+    levels: usize,
 ) -> Result<Vec<RoughnessLevel>, BrdfError> {
     if !(1..=MAX_ROUGHNESS_LEVELS).contains(&levels) {
         return Err(BrdfError::InvalidRoughnessLevels { levels });
     }
-    let Some(alpha) = alpha else {
+    let Some(weights) = weights else {
         return Ok(vec![RoughnessLevel {
             alpha: None,
             density: density.cloned(),
         }]);
     };
+    let alpha = weights.alpha;
     let (width, height) = alpha.size();
     if let Some(density) = density
         && density.size() != (width, height)
@@ -539,10 +539,6 @@ pub(crate) fn roughness_levels(
             alpha: alpha.filter(),
         });
     }
-    let weights = match weights {
-        Some(weights) => weights,
-        None => LevelWeights::new(density.map(Arc::as_ref), alpha, levels)?,
-    };
     let mut result = Vec::new();
     for (level, &level_alpha) in weights.alphas.iter().enumerate() {
         let values = weights.values(level);

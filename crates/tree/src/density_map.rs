@@ -381,17 +381,22 @@ impl DensityMap {
     #[must_use]
     pub fn texels(&self) -> Vec<f64> {
         let sums = &self.tables.sums;
-        let corners = |j: usize| -> Vec<u64> { (0..=self.width).map(|i| sums.at(i, j)).collect() };
+        let read_corners = |j: usize, corners: &mut [u64]| {
+            for (i, corner) in corners.iter_mut().enumerate() {
+                *corner = sums.at(i, j);
+            }
+        };
         let mut values = vec![0.0; self.width * self.height];
-        let mut below = corners(0);
+        let (mut below, mut above) = (vec![0; self.width + 1], vec![0; self.width + 1]);
+        read_corners(0, &mut below);
         for j in 0..self.height {
-            let above = corners(j + 1);
+            read_corners(j + 1, &mut above);
             let row = &mut values[(self.height - 1 - j) * self.width..][..self.width];
             for (i, value) in row.iter_mut().enumerate() {
                 let q = (above[i + 1] - above[i]) - (below[i + 1] - below[i]);
                 *value = q as f64 / FIXED_ONE;
             }
-            below = above;
+            std::mem::swap(&mut below, &mut above);
         }
         values
     }

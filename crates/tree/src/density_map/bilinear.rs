@@ -242,7 +242,6 @@ impl DensityMap {
                 continue;
             }
             let met = columns_met(&strip, 1.0, 0.5);
-            let met = met.start.max(lo.x as i64)..met.end.min(hi.x as i64);
             let inside = within(
                 whole_columns(&from_cells, row as f64, (row + 1) as f64),
                 &met,
