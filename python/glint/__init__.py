@@ -130,7 +130,8 @@ class Material:
     ``pdf_points`` (its QMC points, in [1, 4096]), ``dense`` ("sampled", the default: partly
     covered nodes at the query's scale that hold many particles answer from a rescaled sample,
     with the exact counts' mean and correlations at a bounded cost; or "exact": every particle
-    resolved) and ``dense_node_scale`` (the largest node sampled, in widths of the query, in
+    resolved; or "lattice": queries expecting 8 or more particles answered from a Poisson
+    process drawn at their own scale, a cost that stops growing with N) and ``dense_node_scale`` (the largest node sampled, in widths of the query, in
     (0, 16]; 1 by default: larger is faster and lumpier).
 
     Maps vary the material over its texture square (keyword only; NumPy arrays, row 0 at the

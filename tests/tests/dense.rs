@@ -4,7 +4,9 @@
 use glam::DVec2;
 use glint_tests::SplitMix64;
 use glint_tests::counts::{beckmann_density, highlight_query};
-use glint_tests::dense::{SIDE, conic_and_moved, dense_statistics};
+use glint_tests::dense::{
+    SIDE, assert_deterministic_and_continuous, conic_and_moved, dense_statistics,
+};
 use glint_tree::{CountTree, CountTreeConfig, DenseCounts, DensityMap, Footprint, QueryScratch};
 
 fn tree(particles: f64, dense: DenseCounts) -> CountTree {
@@ -129,48 +131,7 @@ fn sparse_counts_are_the_exact_counts() {
 /// by a millionth or so, but where a sample point or a particle crosses its edge.
 #[test]
 fn sampled_counts_are_deterministic_and_continuous() {
-    let tree = tree(1e13, SAMPLED);
-    let (conic, moved) = conic_and_moved();
-    let mut rng = SplitMix64::new(11);
-    let square = |uv: DVec2| {
-        Footprint::new(uv, DVec2::new(SIDE, 0.0), DVec2::new(0.0, SIDE)).expect("finite")
-    };
-    let positions: Vec<DVec2> = (0..200)
-        .map(|_| DVec2::new(rng.uniform(), rng.uniform()))
-        .collect();
-    let mut scratch = QueryScratch::new();
-    let first: Vec<f64> = positions
-        .iter()
-        .map(|&uv| tree.query(&square(uv), &conic, &mut scratch).count)
-        .collect();
-    // Other queries in between, then the same ones in reverse with a fresh scratch.
-    for &uv in &positions {
-        let _ = tree.query(&square(uv + DVec2::splat(0.3)), &moved, &mut scratch);
-    }
-    let mut fresh = QueryScratch::new();
-    for (uv, count) in positions.iter().zip(&first).rev() {
-        let again = tree.query(&square(*uv), &conic, &mut fresh).count;
-        assert_eq!(again.to_bits(), count.to_bits());
-    }
-    // The mean term moves continuously with the footprint's share of each sampled node; the
-    // sampled points (√w each, w = n/32) and the exact particles only where one crosses an edge.
-    let (mut moved_total, mut total) = (0.0, 0.0);
-    for (uv, count) in positions.iter().zip(&first) {
-        let nudged = tree
-            .query(
-                &square(*uv + DVec2::new(1e-6 * SIDE, 0.0)),
-                &conic,
-                &mut scratch,
-            )
-            .count;
-        assert!((nudged - count).abs() <= 0.05 * count, "{count} → {nudged}");
-        moved_total += (nudged - count).abs();
-        total += count;
-    }
-    assert!(
-        moved_total < 1e-3 * total,
-        "a move of 10⁻⁶ width changed the counts by {moved_total} of {total}"
-    );
+    assert_deterministic_and_continuous(&tree(1e13, SAMPLED));
 }
 
 /// Under a density map that varies at the footprints' scale (1024² texels of 0.1 to 1, each

@@ -6,6 +6,7 @@ mod brdf;
 mod dense;
 mod density_maps;
 mod footprints;
+mod lattice;
 mod light_cones;
 mod map_properties;
 mod sphere;

@@ -12,7 +12,9 @@
 //! within the issue's targets of exact counts
 //! at N = 10¹⁰ and 10¹² (mean 1%, dispersion 15%, correlations 0.05; in `--quick`, at 10¹⁰
 //! only and within four standard errors of its fewer positions), and its nodes per query stop
-//! growing with N (at most 1.15× those at 10¹⁰ up to 10¹⁵).
+//! growing with N (at most 1.15× those at 10¹⁰ up to 10¹⁵); and the lattice regime
+//! (`DenseCounts::Lattice`) is within the same targets (its cost against the N = 10⁶ query is
+//! reported).
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -31,7 +33,7 @@ struct Setting {
     dense: DenseCounts,
 }
 
-const SETTINGS: [Setting; 6] = [
+const SETTINGS: [Setting; 7] = [
     Setting {
         label: "exact (ε = 0)",
         epsilon: 0.0,
@@ -62,10 +64,18 @@ const SETTINGS: [Setting; 6] = [
         epsilon: 0.1,
         dense: DenseCounts::Sampled { node_scale: 1.0 },
     },
+    Setting {
+        label: "lattice, ε = 0.1",
+        epsilon: 0.1,
+        dense: DenseCounts::Lattice,
+    },
 ];
 
 /// The default setting's index in [`SETTINGS`].
 const DEFAULT: usize = 5;
+
+/// The lattice regime's index in [`SETTINGS`].
+const LATTICE: usize = 6;
 
 struct Row {
     particles: f64,
@@ -178,16 +188,24 @@ pub(crate) fn dense(quick: bool, report: &mut String) -> anyhow::Result<Check> {
     }
     // The default against exact counts.
     let compared: &[f64] = if quick { &[1e10] } else { &[1e10, 1e12] };
-    let mut faithful = true;
-    for &particles in compared {
-        match (find(particles, 0), find(particles, DEFAULT)) {
-            (Some(exact), Some(sampled)) => {
-                faithful &=
-                    within_targets(&sampled.statistics, &exact.statistics, positions, quick);
-            }
-            _ => faithful = false,
-        }
-    }
+    let faithful_setting = |setting: usize| {
+        compared.iter().all(
+            |&particles| match (find(particles, 0), find(particles, setting)) {
+                (Some(exact), Some(got)) => {
+                    within_targets(&got.statistics, &exact.statistics, positions, quick)
+                }
+                _ => false,
+            },
+        )
+    };
+    let faithful = faithful_setting(DEFAULT);
+    let lattice_faithful = faithful_setting(LATTICE);
+    // The lattice's cost against the N = 10⁶ query, the issue's 3× (reported, not checked:
+    // times depend on the machine's load).
+    let lattice_ratio = densities
+        .iter()
+        .filter_map(|&n| Some(find(n, LATTICE)?.microseconds / find(1e6, LATTICE)?.microseconds))
+        .fold(0.0f64, f64::max);
     let nodes_at = |particles: f64| find(particles, DEFAULT).map_or(f64::NAN, |r| r.nodes);
     let bounded = densities
         .iter()
@@ -201,12 +219,18 @@ pub(crate) fn dense(quick: bool, report: &mut String) -> anyhow::Result<Check> {
         nodes_at(1e10),
         nodes_at(densities[densities.len() - 1]),
     )?;
+    writeln!(
+        report,
+        "The lattice regime within the targets of exact counts at N = {compared:?}: \
+         {lattice_faithful}; its time per query at most {lattice_ratio:.2}× the N = 10⁶ query's."
+    )?;
     Ok(Check {
         name: "trade: dense glitter",
-        passed: faithful && bounded,
+        passed: faithful && bounded && lattice_faithful,
         summary: format!(
             "{} rows; default within targets of exact counts: {faithful}; nodes bounded: \
-             {bounded} ({:.0} at 10¹⁰)",
+             {bounded} ({:.0} at 10¹⁰); lattice within targets: {lattice_faithful}, at most \
+             {lattice_ratio:.2}× the 10⁶ query",
             rows.len(),
             nodes_at(1e10)
         ),

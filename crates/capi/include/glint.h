@@ -139,6 +139,12 @@ enum GlintDense
    * Every particle resolved (exact counts; the cost grows with N).
    */
   GLINT_DENSE_EXACT = 1,
+  /**
+   * Queries expecting many particles are answered from a Poisson process drawn on a lattice
+   * at their own scale: the exact counts' mean and correlations at a cost that does not grow
+   * with N; others as `GLINT_DENSE_SAMPLED`.
+   */
+  GLINT_DENSE_LATTICE = 2,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

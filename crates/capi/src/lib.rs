@@ -698,6 +698,7 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
     const EXACT: u32 = GlintMultinomial::GLINT_MULTINOMIAL_EXACT as u32;
     const SAMPLED: u32 = GlintDense::GLINT_DENSE_SAMPLED as u32;
     const EXACT_DENSE: u32 = GlintDense::GLINT_DENSE_EXACT as u32;
+    const LATTICE: u32 = GlintDense::GLINT_DENSE_LATTICE as u32;
     const NORMAL: u32 = GlintMultinomial::GLINT_MULTINOMIAL_NORMAL as u32;
     const CUBATURE: u32 = GlintPdfQuadrature::GLINT_PDF_CUBATURE as u32;
     const QMC: u32 = GlintPdfQuadrature::GLINT_PDF_QMC as u32;
@@ -745,9 +746,11 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
             node_scale: p.dense_node_scale,
         },
         EXACT_DENSE => DenseCounts::Exact,
+        LATTICE => DenseCounts::Lattice,
         other => {
             return Err(Failure::parameter(format!(
-                "dense = {other} is invalid: use GLINT_DENSE_SAMPLED or GLINT_DENSE_EXACT"
+                "dense = {other} is invalid: use GLINT_DENSE_SAMPLED, GLINT_DENSE_EXACT or \
+                 GLINT_DENSE_LATTICE"
             )));
         }
     };

@@ -80,6 +80,10 @@ pub enum GlintDense {
     GLINT_DENSE_SAMPLED = 0,
     /// Every particle resolved (exact counts; the cost grows with N).
     GLINT_DENSE_EXACT = 1,
+    /// Queries expecting many particles are answered from a Poisson process drawn on a lattice
+    /// at their own scale: the exact counts' mean and correlations at a cost that does not grow
+    /// with N; others as `GLINT_DENSE_SAMPLED`.
+    GLINT_DENSE_LATTICE = 2,
 }
 
 /// How the density and roughness maps are reconstructed between their texels

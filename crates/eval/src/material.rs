@@ -51,7 +51,7 @@ pub struct MaterialSpec {
     pub gamma_degrees: f64,
     /// ε of Eq. 10; defaults to 0.1.
     pub epsilon: Option<f64>,
-    /// How dense nodes are answered: `"sampled"` (the default) or `"exact"`.
+    /// How dense nodes are answered: `"sampled"` (the default), `"exact"` or `"lattice"`.
     pub dense: Option<String>,
     /// The largest node `"sampled"` answers from its sample, in widths of the query; defaults
     /// to 2.
@@ -258,7 +258,7 @@ impl MaterialSpec {
             }
         };
         let multinomial = optional_name(m, "multinomial", "\"exact\" or \"normal\"")?;
-        let dense = optional_name(m, "dense", "\"sampled\" or \"exact\"")?;
+        let dense = optional_name(m, "dense", "\"sampled\", \"exact\" or \"lattice\"")?;
         let pdf_quadrature = optional_name(m, "pdf_quadrature", "\"cubature\" or \"qmc\"")?;
         Ok(Self {
             distribution,

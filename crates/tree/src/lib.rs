@@ -57,6 +57,7 @@ pub use node::NodeId;
 pub use sampling::MultinomialMode;
 pub use tree::{
     CountTree, CountTreeConfig, DENSE_MIN_PARTICLES, DenseCounts, DirectionalLawExcess,
-    LEAF_CELL_ARC, LEAF_PARTICLES, MAX_CACHED_LEVELS, MAX_PARTICLES, ManyTiles, QueryResult,
-    QueryScratch, TurnSymmetry, VIRTUAL_PARTICLES, expected_conic_solid_angle,
+    LATTICE_FROM, LATTICE_ONLY, LATTICE_POINTS, LEAF_CELL_ARC, LEAF_PARTICLES, MAX_CACHED_LEVELS,
+    MAX_GRID_CELLS, MAX_PARTICLES, ManyTiles, QueryResult, QueryScratch, TurnSymmetry,
+    VIRTUAL_PARTICLES, expected_conic_solid_angle,
 };

@@ -9,6 +9,8 @@
 //! - `scratch`: the reusable working memory and memo of queries ([`QueryScratch`]).
 //! - `spine`: the single spatial path from the root that queries share, remembered across
 //!   queries so that a query starts below it.
+//! - `lattice`: the lattice regime, a Poisson process drawn at the query's own scale for
+//!   queries that expect many particles (`DenseCounts::Lattice`).
 //! - `law`: the expected count and the directional law's excess over p
 //!   ([`CountTree::expected_count`], [`CountTree::directional_law_excess`]).
 
@@ -25,6 +27,7 @@ use crate::sampling::MultinomialMode;
 use crate::tea::DEFAULT_ROUNDS;
 
 mod dense;
+mod lattice;
 mod law;
 mod particles;
 mod query;
@@ -32,6 +35,7 @@ mod scratch;
 mod spine;
 
 pub use dense::{DENSE_MIN_PARTICLES, DenseCounts, VIRTUAL_PARTICLES};
+pub use lattice::{LATTICE_FROM, LATTICE_ONLY, LATTICE_POINTS, MAX_GRID_CELLS};
 use law::LeafShare;
 pub use law::{DirectionalLawExcess, TurnSymmetry};
 use particles::{DescentStep, Node};

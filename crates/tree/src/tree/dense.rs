@@ -98,6 +98,13 @@ pub enum DenseCounts {
         /// The largest node answered from its sample, in widths of the query (0 < s ≤ 16).
         node_scale: f64,
     },
+    /// A query expecting at least [`super::LATTICE_FROM`] particles is answered, in part or
+    /// (from [`super::LATTICE_ONLY`]) whole, from a Poisson process drawn on a lattice at its
+    /// own scale (`super::lattice`): the exact counts' mean, dispersion and correlations at a
+    /// cost bounded by the lattice's cells, not by N. Elsewhere (fewer particles, coloured
+    /// materials, density maps varying at the query's scale, conics reaching the horizon) the
+    /// tree answers as with `Sampled { node_scale: 1 }`.
+    Lattice,
 }
 
 impl DenseCounts {
@@ -109,8 +116,8 @@ impl DenseCounts {
     /// validate`, trade suite).
     pub const DEFAULT_NODE_SCALE: f64 = 1.0;
 
-    /// The names every interface spells the modes with: "sampled" and "exact".
-    pub const NAMES: [&'static str; 2] = ["sampled", "exact"];
+    /// The names every interface spells the modes with: "sampled", "exact" and "lattice".
+    pub const NAMES: [&'static str; 3] = ["sampled", "exact", "lattice"];
 
     /// The mode named `name` (one of [`DenseCounts::NAMES`]) with `node_scale` (used by
     /// "sampled"; `None` for the default).
@@ -123,6 +130,7 @@ impl DenseCounts {
         let mode = match name {
             "sampled" => Self::Sampled { node_scale },
             "exact" => Self::Exact,
+            "lattice" => Self::Lattice,
             _ => return Err(TreeError::UnknownDenseMode),
         };
         if mode.is_valid() {
@@ -136,7 +144,7 @@ impl DenseCounts {
     #[must_use]
     pub fn is_valid(&self) -> bool {
         match *self {
-            Self::Exact => true,
+            Self::Exact | Self::Lattice => true,
             Self::Sampled { node_scale } => node_scale > 0.0 && node_scale <= 16.0,
         }
     }
@@ -178,8 +186,10 @@ impl CountTree {
         footprint: &Footprint,
         conic: &SphericalConic,
     ) -> Option<DenseScales> {
-        let DenseCounts::Sampled { node_scale } = self.config.dense else {
-            return None;
+        let node_scale = match self.config.dense {
+            DenseCounts::Exact => return None,
+            DenseCounts::Sampled { node_scale } => node_scale,
+            DenseCounts::Lattice => DenseCounts::DEFAULT_NODE_SCALE,
         };
         let cell_across = node_scale * conic.gamma();
         Some(DenseScales {

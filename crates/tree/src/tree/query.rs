@@ -21,6 +21,7 @@
 use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic};
 
+use super::DenseCounts;
 use super::dense::{DenseWork, PartialNode};
 use super::particles::{DRAWN_AREAS_DEPTH, LEAF_PARTICLES, Node, quarter_min};
 use super::scratch::QueryMemo;
@@ -108,17 +109,42 @@ impl CountTree {
         conic: &SphericalConic,
         scratch: &mut QueryScratch,
     ) -> QueryResult {
-        let mut count = 0.0;
-        let mut area_sums = [0.0; 3];
-        let mut visited = 0u32;
-        let mut overlapping = 0u32;
-        let mut truncated = false;
         if footprint.is_degenerate() {
-            return self.result(0.0, area_sums, [visited, overlapping], truncated);
+            return self.result(0.0, [0.0; 3], [0, 0], false);
         }
         if self.config.many_tiles.averages(footprint) {
             return self.periodic_average(footprint, conic, scratch);
         }
+        if self.config.dense == DenseCounts::Lattice
+            && let Some(lattice) = self.lattice_answer(footprint, conic, &mut scratch.lattice)
+            && lattice.weight > 0.0
+        {
+            let cells = [lattice.cells; 2];
+            if lattice.weight >= 1.0 {
+                return self.result(lattice.count, [0.0; 3], cells, false);
+            }
+            // The band between the regimes: (1 − t)·tree + t·lattice.
+            let tree = self.traverse(footprint, conic, scratch);
+            let t = lattice.weight;
+            let count = (1.0 - t) * tree.count + t * lattice.count;
+            let nodes = [tree.nodes_visited, tree.nodes_overlapping].map(|n| n + lattice.cells);
+            return self.result(count, [0.0; 3], nodes, tree.truncated);
+        }
+        self.traverse(footprint, conic, scratch)
+    }
+
+    /// Alg. 1 over the tree, for a footprint that is not degenerate and not averaged.
+    fn traverse(
+        &self,
+        footprint: &Footprint,
+        conic: &SphericalConic,
+        scratch: &mut QueryScratch,
+    ) -> QueryResult {
+        let mut count = 0.0;
+        let mut area_sums = [0.0; 3];
+        let mut visited;
+        let mut overlapping = 0u32;
+        let mut truncated = false;
         let node_budget = node_budget_for(footprint, self.config.node_budget);
         let QueryScratch {
             queue,
@@ -127,6 +153,7 @@ impl CountTree {
             in_footprint,
             memo,
             spines,
+            ..
         } = scratch;
         queue.clear();
         next_queue.clear();

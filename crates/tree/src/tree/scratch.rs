@@ -10,6 +10,7 @@ use glam::DVec2;
 use glint_sphere::{Classification, SphericalConic};
 
 use super::CountTree;
+use super::lattice::LatticeScratch;
 use super::particles::{LeafDraws, LeafParticle, Node, PairCounts, box_size_at};
 use super::query::QueuedNode;
 use super::spine::Spines;
@@ -31,6 +32,7 @@ pub struct QueryScratch {
     pub(super) in_footprint: Vec<LeafParticle>,
     pub(super) memo: QueryMemo,
     pub(super) spines: Spines,
+    pub(super) lattice: LatticeScratch,
 }
 
 impl QueryScratch {
