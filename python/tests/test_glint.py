@@ -24,6 +24,8 @@ MATERIALS = [
          fresnel={"conductor": {"eta": [0.2, 0.9, 1.1], "k": [3.9, 2.4, 2.2]}}),
     dict(distribution="beckmann", alpha=0.1, particles=1e12, gamma_degrees=0.5,
          negligible_count=1e-12, fresnel={"dielectric": {"eta": 1.5}}),
+    dict(distribution="beckmann", alpha=0.1, particles=1e12, gamma_degrees=1.0, seed=5,
+         dense="lattice"),
 ]
 
 
