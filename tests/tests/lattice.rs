@@ -45,6 +45,29 @@ fn lattice_counts_keep_the_exact_statistics() {
     }
 }
 
+/// In the band between the regimes (here λ ≈ 5.7, t ≈ ½) the blended count keeps the exact
+/// counts' mean and dispersion: the tree's and the lattice's deviations are independent, and
+/// their weighed sum is rescaled to the variance of either (unrescaled, the dispersion would
+/// be about ½). Tolerances: about four standard errors of 1000 positions.
+#[test]
+fn blended_counts_keep_the_exact_statistics() {
+    let exact = dense_statistics(&tree(3.16e9, DenseCounts::Exact), 1000, 5);
+    let blended = dense_statistics(&tree(3.16e9, DenseCounts::Lattice), 1000, 5);
+    assert!((4.5..7.0).contains(&exact.mean), "{exact:?}");
+    assert!(
+        (blended.mean / exact.mean - 1.0).abs() < 0.06,
+        "mean {blended:?} against {exact:?}"
+    );
+    assert!(
+        (blended.dispersion / exact.dispersion - 1.0).abs() < 0.2,
+        "dispersion {blended:?} against {exact:?}"
+    );
+    assert!(
+        (blended.shifted - exact.shifted).abs() < 0.2,
+        "{blended:?} against {exact:?}"
+    );
+}
+
 /// The lattice's cells depend on the query's size, not on N: from N = 10¹² to 10¹⁵ the
 /// highlight workload draws the same cells per query (reported as nodes visited), at most
 /// [`MAX_GRID_CELLS`]² each.

@@ -61,7 +61,8 @@ pub struct QueryResult {
     /// the particles found (all three channels equal for gray materials).
     pub d_hat: [f64; 3],
     /// Tree nodes visited: every non-empty node tested against the query, as Alg. 1 pops
-    /// and tests every child it pushed (disjoint ones included).
+    /// and tests every child it pushed (disjoint ones included); under the lattice regime,
+    /// the lattice's cells drawn (added to the tree's nodes in the band between the two).
     pub nodes_visited: u32,
     /// The visited nodes that meet the query (not proven disjoint from it: the conservative
     /// "partial" answers count): those Alg. 1 counts, splits or estimates rather than
@@ -123,10 +124,12 @@ impl CountTree {
             if lattice.weight >= 1.0 {
                 return self.result(lattice.count, [0.0; 3], cells, false);
             }
-            // The band between the regimes: (1 − t)·tree + t·lattice.
+            // The band between the regimes: the two independent counts' deviations from λ,
+            // weighed by 1 − t and t and rescaled to keep the variance (`super::lattice`).
             let tree = self.traverse(footprint, conic, scratch);
-            let t = lattice.weight;
-            let count = (1.0 - t) * tree.count + t * lattice.count;
+            let (t, mean) = (lattice.weight, lattice.expected);
+            let deviation = (1.0 - t) * (tree.count - mean) + t * (lattice.count - mean);
+            let count = (mean + deviation / ((1.0 - t).powi(2) + t * t).sqrt()).max(0.0);
             let nodes = [tree.nodes_visited, tree.nodes_overlapping].map(|n| n + lattice.cells);
             return self.result(count, [0.0; 3], nodes, tree.truncated);
         }
