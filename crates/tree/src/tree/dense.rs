@@ -98,7 +98,8 @@ pub enum DenseCounts {
         /// The largest node answered from its sample, in widths of the query (0 < s ≤ 16).
         node_scale: f64,
     },
-    /// A query expecting at least [`super::LATTICE_FROM`] particles is answered, in part or
+    /// A query expecting at least [`super::LATTICE_FROM`] particles (by an estimate made
+    /// before any cell) is answered, in part or
     /// (from [`super::LATTICE_ONLY`]) whole, from a Poisson process drawn on a lattice at its
     /// own scale (`super::lattice`): the exact counts' mean, dispersion and correlations at a
     /// cost bounded by the lattice's cells, not by N. Elsewhere (fewer particles, coloured

@@ -44,10 +44,15 @@
 //! 0.19 at N = 10¹², exact 0.02; mean, dispersion and correlations as before).
 //!
 //! # Where it answers
-//! Queries whose expected count λ = N·∫_F d·∫_C p is at least [`LATTICE_ONLY`] are answered by
-//! the lattice alone; below [`LATTICE_FROM`] by the tree (its particles, sampled dense nodes
-//! where they are dense); in between by (1 − t)·tree + t·lattice, t rising smoothly with
-//! ln λ, so that a query's count moves continuously as λ crosses the band; the two counts are
+//! By an estimate of the expected count that needs no cells, λ̃ = N·A·d̄·P22(c)·|E| (A the
+//! footprint's area, d̄ a density map's mean over the square about its bounding box, and the
+//! ellipse E's area times P22 at its centre c: the midpoint rule of ∫_C p in slope space),
+//! continuous in the query: queries with λ̃ of at least [`LATTICE_ONLY`] are answered by the
+//! lattice alone; below [`LATTICE_FROM`] by the tree (its particles, sampled dense nodes where
+//! they are dense), before any cell is built, so that sparse queries pay nothing for the
+//! lattice but the estimate; in between by (1 − t)·tree + t·lattice, t rising smoothly with
+//! ln λ̃, so that a query's count moves continuously across the band. The blend is centred
+//! on the cells' own λ = N·∫_F d·Σ P_c·ν_c; the two counts are
 //! independent draws, so their deviations from λ are rescaled by 1/√((1 − t)² + t²) to keep
 //! the variance: λ + ((1 − t)(T − λ) + t(L − λ))/√((1 − t)² + t²), at least 0. The tree answers
 //! also where the lattice cannot: coloured materials, density maps that vary over a square of
@@ -78,16 +83,19 @@ use slope_ellipse::SlopeEllipse;
 use tilt::Tilt;
 
 use super::CountTree;
+use crate::density_map::DensityMap;
 use crate::footprint::{BoxOverlap, Footprint};
 use crate::node::mix64;
 
 /// M: the points a cut cell places at most.
 pub const LATTICE_POINTS: u64 = 8;
 
-/// Queries expecting fewer particles are answered by the tree.
+/// Queries expecting fewer particles (by the estimate λ̃ the module docs define) are answered
+/// by the tree.
 pub const LATTICE_FROM: f64 = 4.0;
 
-/// Queries expecting at least this many particles are answered by the lattice alone.
+/// Queries expecting at least this many particles (by the same estimate) are answered by the
+/// lattice alone.
 pub const LATTICE_ONLY: f64 = 8.0;
 
 /// The most squares of either grid (space, slopes) a query meets; a query meeting more at its
@@ -177,7 +185,7 @@ pub(super) struct LatticeAnswer {
     pub(super) cells: u32,
 }
 
-/// t: 0 below [`LATTICE_FROM`], 1 from [`LATTICE_ONLY`], smooth in ln λ between.
+/// t: 0 below [`LATTICE_FROM`], 1 from [`LATTICE_ONLY`], smooth in ln λ̃ between.
 fn lattice_weight(expected: f64) -> f64 {
     let x = ((expected / LATTICE_FROM).ln() / (LATTICE_ONLY / LATTICE_FROM).ln()).clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
@@ -209,35 +217,25 @@ impl CountTree {
         }
         let ellipse = SlopeEllipse::of(conic)?;
         let particles = self.config.particles as f64;
-        // A first look, before any cell: N·A times the ellipse's area times the larger of
-        // P22 at its centre and at its bounding box's point nearest slope 0. For lobes that
-        // fall away from slope 0 along each axis (Beckmann, GGX, Ashikhmin–Shirley) that is
-        // a bound on λ; the factor 2 leaves a margin for others. Queries it turns away build
-        // no cells: at N = 10⁸ in the trade suite's workload, where none expects 4 particles,
-        // a query takes 59.6 k instructions with a margin of 2 and 75.5 k with one of 8.
-        let nearest_peak = DVec2::ZERO.clamp(
-            ellipse.center - ellipse.half_extent,
-            ellipse.center + ellipse.half_extent,
-        );
-        let peak = self
-            .slope_density(ellipse.center)
-            .max(self.slope_density(nearest_peak));
-        let densest = self.density_map.as_ref().map_or(1.0, |map| map.max());
-        if particles * footprint.area() * densest * peak * ellipse.area < LATTICE_FROM / 2.0 {
+        // λ̃: the weight's estimate of λ, before any cell (see the module docs).
+        let density = self
+            .density_map
+            .as_ref()
+            .map_or(1.0, |map| footprint_density(map, footprint));
+        let estimate = particles
+            * footprint.area()
+            * density
+            * self.slope_density(ellipse.center)
+            * ellipse.area;
+        let weight = lattice_weight(estimate);
+        if weight == 0.0 {
             return None;
         }
-        let directional = self.slope_cells(&ellipse, &mut scratch.slopes)?;
+        // Space first: a density map that varies over a square turns the query to the tree
+        // before the slope squares' fractions are paid for.
         let spatial = self.space_cells(footprint, &mut scratch.spaces)?;
+        let directional = self.slope_cells(&ellipse, &mut scratch.slopes)?;
         let expected = particles * spatial.mass * directional.in_conic;
-        let weight = lattice_weight(expected);
-        if weight == 0.0 {
-            return Some(LatticeAnswer {
-                expected,
-                weight,
-                count: 0.0,
-                cells: 0,
-            });
-        }
         let (count, cells) =
             self.lattice_count(footprint, &ellipse, scratch, &spatial, directional.level);
         Some(LatticeAnswer {
@@ -554,6 +552,22 @@ impl CountTree {
     }
 }
 
+/// λ̃'s density: the map's mean over the square of the footprint's larger extent about its
+/// bounding box (its centre wrapped to the texture square, the square moved inside it; the
+/// map's mean where it is wider), in O(1) and continuous in the footprint but across the
+/// square's edges. A map's exact mass over the footprint would cost as many look-ups as its
+/// edges cut texels.
+fn footprint_density(map: &DensityMap, footprint: &Footprint) -> f64 {
+    let (min, max) = footprint.bounds();
+    let side = (max - min).max_element();
+    if !(side < 1.0) {
+        return map.mean();
+    }
+    let centre = (0.5 * (min + max)).rem_euclid(DVec2::ONE);
+    let lo = (centre - DVec2::splat(0.5 * side)).clamp(DVec2::ZERO, DVec2::splat(1.0 - side));
+    map.mean_over_square(lo, side)
+}
+
 /// A cell's stream: SplitMix64 (Steele, Lea and Flood 2014) from the cell's key, for its count
 /// and then its points (four draws each). The tree's TEA streams would be most of the
 /// lattice's cost.
@@ -819,6 +833,78 @@ mod tests {
                 assert!(scratch.spaces.iter().all(|cell| seen.insert(cell.index)));
             }
         }
+    }
+
+    /// The weight comes from λ̃, before any cell: a query below the band builds none (the
+    /// tree answers, and pays only for λ̃), λ̃ is within 25% of the cells' λ across the
+    /// band, and the weight moves without jumps as the cone widens across the grids' levels.
+    #[test]
+    fn the_band_is_decided_before_the_cells() {
+        let config = CountTreeConfig {
+            particles: 1 << 33,
+            dense: DenseCounts::Lattice,
+            ..CountTreeConfig::default()
+        };
+        let tree = CountTree::new(config, beckmann(0.1)).expect("valid");
+        let mut scratch = LatticeScratch::default();
+        let h = DVec3::new(0.06, 0.04, 1.0).normalize();
+        let t = h.cross(DVec3::Z).normalize();
+        let wi = (0.4f64.cos() * h + 0.4f64.sin() * t).normalize();
+        let wo = 2.0 * wi.dot(h) * h - wi;
+        let mut answer = |gamma: f64, side: f64| {
+            let conic = SphericalConic::new(wi, wo, gamma).expect("valid");
+            let footprint = Footprint::new(
+                DVec2::new(0.4, 0.6),
+                DVec2::new(side, 0.0),
+                DVec2::new(0.0, side),
+            )
+            .expect("finite");
+            scratch.slopes.clear();
+            scratch.spaces.clear();
+            let answer = tree.lattice_answer(&footprint, &conic, &mut scratch);
+            (answer, scratch.slopes.len() + scratch.spaces.len())
+        };
+        let (below, cells) = answer(1f64.to_radians(), 1e-4);
+        assert!(below.is_none() && cells == 0, "{below:?}, {cells} cells");
+        // Over 700 steps from 1° to 8° at a footprint whose λ passes through the band.
+        let mut last = 0.0;
+        let mut crossed = false;
+        for i in 0..=700 {
+            let gamma = (1.0 + 7.0 * f64::from(i) / 700.0).to_radians();
+            let weight = match answer(gamma, 2.2e-4).0 {
+                None => 0.0,
+                Some(a) => {
+                    if a.weight < 1.0 {
+                        let estimate = LATTICE_FROM
+                            * (LATTICE_ONLY / LATTICE_FROM).powf(inverse_weight(a.weight));
+                        assert!(
+                            (estimate / a.expected - 1.0).abs() < 0.25,
+                            "γ {gamma}: λ̃ {estimate}, λ {}",
+                            a.expected
+                        );
+                    }
+                    a.weight
+                }
+            };
+            assert!((weight - last).abs() < 0.05, "γ {gamma}: {last} → {weight}");
+            crossed |= weight > 0.0 && weight < 1.0;
+            last = weight;
+        }
+        assert!(crossed && last == 1.0, "the sweep never crossed the band");
+    }
+
+    /// x ∈ [0, 1] from t = x²(3 − 2x), by bisection.
+    fn inverse_weight(t: f64) -> f64 {
+        let (mut lo, mut hi) = (0.0, 1.0);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if mid * mid * (3.0 - 2.0 * mid) < t {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
     }
 
     /// t rises from 0 at LATTICE_FROM to 1 at LATTICE_ONLY, monotone and without jumps.
