@@ -357,19 +357,40 @@ impl DensityMap {
         self.mean
     }
 
-    /// The mean of d over the square [min, min + side]², inside the texture square, in
-    /// O(1) summed-area look-ups (nearest or bilinear, as the map is filtered); continuous in
-    /// `min` and `side`.
+    /// The mean of d over the square of side `side` < 1 centred on `centre`, wrapped across
+    /// the texture square's edges (as the map repeats), from the summed-area tables of at most
+    /// four pieces (nearest or bilinear, as the map is filtered); continuous in `centre` and
+    /// `side`.
     #[must_use]
-    pub fn mean_over_square(&self, min: DVec2, side: f64) -> f64 {
+    pub fn mean_over_square(&self, centre: DVec2, side: f64) -> f64 {
         if let Some(value) = self.uniform {
             return value;
         }
         let texels = side * side * (self.width * self.height) as f64;
-        if !(texels > 0.0) {
-            return self.value_at(min);
+        if !(texels > 0.0 && side < 1.0) {
+            return if side >= 1.0 {
+                self.mean
+            } else {
+                self.value_at(centre)
+            };
         }
-        self.box_mass(min, side) / (FIXED_ONE * texels)
+        // Each axis's interval, its low end wrapped into [0, 1), as at most two pieces within
+        // the square.
+        let pieces = |c: f64| {
+            let lo = (c - 0.5 * side).rem_euclid(1.0);
+            let first = (1.0 - lo).min(side);
+            [(lo, first), (0.0, side - first)]
+        };
+        let (columns, rows) = (pieces(centre.x), pieces(centre.y));
+        let mut mass = 0.0;
+        for &(y, height) in &rows {
+            for &(x, width) in &columns {
+                if width > 0.0 && height > 0.0 {
+                    mass += self.rect_mass(DVec2::new(x, y), DVec2::new(width, height));
+                }
+            }
+        }
+        mass / (FIXED_ONE * texels)
     }
 
     /// The value of every texel, when they are all equal (as stored: a multiple of 2⁻³²).
@@ -555,11 +576,17 @@ impl DensityMap {
     /// ∫d over the box [min, min + size]² in fixed-point texel units (proportional to the
     /// mass; exactly 0 when every texel it covers is 0).
     fn box_mass(&self, min: DVec2, size: f64) -> f64 {
+        self.rect_mass(min, DVec2::splat(size))
+    }
+
+    /// ∫d over the rectangle [min, min + size] within the unit square, in fixed-point texel
+    /// units.
+    fn rect_mass(&self, min: DVec2, size: DVec2) -> f64 {
         if self.filter == MapFilter::Bilinear {
-            return self.bilinear_box_mass(min, size);
+            return self.bilinear_rect_mass(min, size);
         }
-        let columns = TexelSpan::new(min.x, min.x + size, self.width);
-        let rows = TexelSpan::new(min.y, min.y + size, self.height);
+        let columns = TexelSpan::new(min.x, min.x + size.x, self.width);
+        let rows = TexelSpan::new(min.y, min.y + size.y, self.height);
         let mut mass = 0.0;
         for (j0, j1, row_weight) in rows.groups() {
             for (i0, i1, column_weight) in columns.groups() {
@@ -1296,9 +1323,10 @@ mod tests {
         }
     }
 
-    /// The mean over a square is the integral of the map over it (a fine midpoint rule) over
-    /// its area, for nearest and bilinear maps; a square narrower than a texel (down to 0)
-    /// nears the value at its corner.
+    /// The mean over a square is the integral of the map over it (a fine midpoint rule of the
+    /// repeating map) over its area, for nearest and bilinear maps, squares across the
+    /// texture square's edges included; a square narrower than a texel (down to 0) nears the
+    /// value at its centre.
     #[test]
     fn the_mean_over_a_square_is_the_integral_over_its_area() {
         let (nearest, _) = patchy(11, 6, 3);
@@ -1310,7 +1338,9 @@ mod tests {
                 let [a, b] = unit_pair(rng.next_bits());
                 let [c, _] = unit_pair(rng.next_bits());
                 let side = 0.01 + 0.5 * c;
-                let min = DVec2::new(a, b) * (1.0 - side);
+                // Centres over the square and past its edges.
+                let centre = DVec2::new(a, b) * 1.4 - 0.2;
+                let min = centre - 0.5 * side;
                 let n = 400;
                 let mut sum = 0.0;
                 for i in 0..n {
@@ -1320,10 +1350,10 @@ mod tests {
                     }
                 }
                 let reference = sum / f64::from(n * n);
-                let mean = map.mean_over_square(min, side);
+                let mean = map.mean_over_square(centre, side);
                 assert!(
                     (mean - reference).abs() < 0.01,
-                    "{min} {side}: {mean} against {reference}"
+                    "{centre} {side}: {mean} against {reference}"
                 );
             }
             let corner = DVec2::new(0.31, 0.62);

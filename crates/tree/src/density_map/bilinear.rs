@@ -126,10 +126,10 @@ impl DensityMap {
             + self.periodic_prefix(i0, j0)) as u64
     }
 
-    /// ∫ d over the box [min, min + size]² in fixed-point texel units, bilinear.
-    pub(super) fn bilinear_box_mass(&self, min: DVec2, size: f64) -> f64 {
-        let columns = TentSpan::new(min.x, min.x + size, self.width);
-        let rows = TentSpan::new(min.y, min.y + size, self.height);
+    /// ∫ d over the rectangle [min, min + size] in fixed-point texel units, bilinear.
+    pub(super) fn bilinear_rect_mass(&self, min: DVec2, size: DVec2) -> f64 {
+        let columns = TentSpan::new(min.x, min.x + size.x, self.width);
+        let rows = TentSpan::new(min.y, min.y + size.y, self.height);
         let mut mass = 0.0;
         for &(j0, j1, row_weight) in rows.groups() {
             for &(i0, i1, column_weight) in columns.groups() {
@@ -446,7 +446,8 @@ mod tests {
                 for bx in 0..boxes.min(6) {
                     for by in 0..boxes.min(6) {
                         let min = DVec2::new(bx as f64, by as f64) * size;
-                        let mass = map.bilinear_box_mass(min, size) / (FIXED_ONE * (w * h) as f64);
+                        let mass = map.bilinear_rect_mass(min, DVec2::splat(size))
+                            / (FIXED_ONE * (w * h) as f64);
                         let reference =
                             midpoint_mass(&map, [min.x, min.x + size], [min.y, min.y + size], 160);
                         assert!(
@@ -483,7 +484,7 @@ mod tests {
                             let half = 0.5 * size;
                             for (q, &pq) in p.iter().enumerate() {
                                 let c = min + DVec2::new((q & 1) as f64, (q >> 1) as f64) * half;
-                                let quarter = map.bilinear_box_mass(c, half);
+                                let quarter = map.bilinear_rect_mass(c, DVec2::splat(half));
                                 assert_eq!(pq == 0.0, quarter == 0.0);
                                 let reference =
                                     midpoint_mass(&map, [c.x, c.x + half], [c.y, c.y + half], 100);

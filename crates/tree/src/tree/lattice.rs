@@ -38,7 +38,7 @@
 //! So the count keeps the exact counts' mean, dispersion and correlations at a cost set by the
 //! lattice's cells (about 4–9 squares × 2–6 slope cells, at most [`MAX_GRID_CELLS`] squares
 //! of either grid), not by N. Slope cells of four squares instead of one draw a quarter of
-//! the cells (trade suite, N = 10¹²: 42.9 k instructions per query against 51.9 k; 47.5 cells
+//! the cells (trade suite, N = 10¹²: 42.8 k instructions per query against 51.9 k; 47.5 cells
 //! per `glitter_object` query at N = 10¹⁰ against 85) for coarser higher moments: a cut
 //! cell's sample is coarser by √(X_c/M), and X_c is four times larger (skewness 0.38 against
 //! 0.19 at N = 10¹², exact 0.02; mean, dispersion and correlations as before).
@@ -50,7 +50,9 @@
 //! continuous in the query: queries with λ̃ of at least [`LATTICE_ONLY`] are answered by the
 //! lattice alone; below [`LATTICE_FROM`] by the tree (its particles, sampled dense nodes where
 //! they are dense), before any cell is built, so that sparse queries pay nothing for the
-//! lattice but the estimate; in between by (1 − t)·tree + t·lattice, t rising smoothly with
+//! lattice but the estimate. λ̃ is 1.00–1.15 λ up to α off the lobe's peak and lower on its
+//! flank for wide cones (0.65 λ at 2 α, 0.30 λ at 3 α for γ = 6°; unit tests), where the tree
+//! answers queries of up to a few tens of particles; in between by (1 − t)·tree + t·lattice, t rising smoothly with
 //! ln λ̃, so that a query's count moves continuously across the band. The blend is centred
 //! on the cells' own λ = N·∫_F d·Σ P_c·ν_c; the two counts are
 //! independent draws, so their deviations from λ are rescaled by 1/√((1 − t)² + t²) to keep
@@ -107,7 +109,7 @@ pub const MAX_GRID_CELLS: usize = 64;
 pub(crate) struct SlopeSquare {
     lo: DVec2,
     /// The cell's probability up to and with this square, over the cell's (the point's
-    /// square is the first whose share reaches a uniform draw).
+    /// square is the first whose share exceeds a uniform draw).
     share_up_to: f64,
     /// The log-linear model over the square: a slope s has relative density
     /// exp(g·(s − centre)), g = ∇ln P22.
@@ -147,6 +149,21 @@ impl SlopeCell {
             .find(|square| u < square.share_up_to)
             .unwrap_or(&self.squares[3])
     }
+
+    /// Whether the point of this cell's law drawn from `u` (its square, then the square's
+    /// log-linear law on each axis) lies in the conic; fine squares of side `side`.
+    #[inline]
+    fn holds_point(&self, ellipse: &SlopeEllipse, side: f64, u: [f64; 3]) -> bool {
+        let square = self.square(u[0]);
+        match square.place {
+            Place::Inside => true,
+            Place::Outside => false,
+            Place::Cut => {
+                let t = square.tilt.quantile([u[1], u[2]]);
+                ellipse.contains(square.lo + side * t)
+            }
+        }
+    }
 }
 
 /// A square of space the query's footprint meets.
@@ -179,9 +196,9 @@ pub(super) struct LatticeAnswer {
     pub(super) expected: f64,
     /// The weight t of the lattice's count (0: the tree alone).
     pub(super) weight: f64,
-    /// The lattice's count (0 when the weight is 0).
+    /// The lattice's count.
     pub(super) count: f64,
-    /// The cells (square, slope square) drawn.
+    /// The cells (square, slope cell) drawn.
     pub(super) cells: u32,
 }
 
@@ -228,7 +245,8 @@ impl CountTree {
             * self.slope_density(ellipse.center)
             * ellipse.area;
         let weight = lattice_weight(estimate);
-        if weight == 0.0 {
+        // Below the band, or λ̃ not a number (an infinite area times a vanishing density).
+        if !(weight > 0.0) {
             return None;
         }
         // Space first: a density map that varies over a square turns the query to the tree
@@ -524,16 +542,7 @@ impl CountTree {
                     if multiplicity == 0.0 {
                         continue;
                     }
-                    let square = slope.square(u[2]);
-                    let in_conic = match square.place {
-                        Place::Inside => true,
-                        Place::Outside => false,
-                        Place::Cut => {
-                            let t = square.tilt.quantile([u[3], u[4]]);
-                            ellipse.contains(square.lo + slope_side * t)
-                        }
-                    };
-                    if in_conic {
+                    if slope.holds_point(ellipse, slope_side, [u[2], u[3], u[4]]) {
                         found += multiplicity;
                     }
                 }
@@ -553,23 +562,16 @@ impl CountTree {
 }
 
 /// λ̃'s density: the map's mean over the square of the footprint's larger extent about its
-/// bounding box (its centre wrapped to the texture square, the square moved inside it; the
-/// map's mean where it is wider), in O(1) and continuous in the footprint but across the
-/// square's edges. A map's exact mass over the footprint would cost as many look-ups as its
-/// edges cut texels.
+/// bounding box, wrapped as the map repeats (the map's mean where it is a tile wide or more),
+/// in O(1) and continuous in the footprint. A map's exact mass over the footprint would cost
+/// as many look-ups as its edges cut texels.
 fn footprint_density(map: &DensityMap, footprint: &Footprint) -> f64 {
     let (min, max) = footprint.bounds();
-    let side = (max - min).max_element();
-    if !(side < 1.0) {
-        return map.mean();
-    }
-    let centre = (0.5 * (min + max)).rem_euclid(DVec2::ONE);
-    let lo = (centre - DVec2::splat(0.5 * side)).clamp(DVec2::ZERO, DVec2::splat(1.0 - side));
-    map.mean_over_square(lo, side)
+    map.mean_over_square(0.5 * (min + max), (max - min).max_element())
 }
 
 /// A cell's stream: SplitMix64 (Steele, Lea and Flood 2014) from the cell's key, for its count
-/// and then its points (four draws each). The tree's TEA streams would be most of the
+/// and then its points (five draws each). The tree's TEA streams would be most of the
 /// lattice's cost.
 struct PointStream(u64);
 
@@ -668,6 +670,25 @@ mod tests {
     use super::*;
     use crate::tree::test_support::beckmann;
     use crate::tree::{CountTreeConfig, DenseCounts, QueryScratch};
+
+    /// A tree of `particles` under Beckmann α = 0.1 in the lattice regime.
+    fn lattice_tree(particles: u64) -> CountTree {
+        let config = CountTreeConfig {
+            particles,
+            dense: DenseCounts::Lattice,
+            ..CountTreeConfig::default()
+        };
+        CountTree::new(config, beckmann(0.1)).expect("valid")
+    }
+
+    /// The directions (ω_i, ω_o) reflected about the half-vector `h` at θ_d from it, turned
+    /// away from the normal.
+    fn directions_about(h: DVec3, theta_d: f64) -> (DVec3, DVec3) {
+        let h = h.normalize();
+        let t = h.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
+        let wi = (theta_d.cos() * h + theta_d.sin() * t).normalize();
+        (wi, 2.0 * wi.dot(h) * h - wi)
+    }
 
     /// The lattice's expected count N·∫_F d·Σ P_c·ν_c (slope squares by the 2 × 2 Gauss rule,
     /// cut ones by the rows of the log-linear model): the footprint's area, and the conic's
@@ -835,22 +856,110 @@ mod tests {
         }
     }
 
+    /// A slope cell's points follow the law whose fraction in the conic the cell reports: over
+    /// 100 000 points of each cell a wide conic cuts, the share inside is the cell's ν within
+    /// four standard errors plus the rows' 0.3%, and each square is drawn by its probability;
+    /// squares of probability 0 (first, between, last) are never drawn.
+    #[test]
+    fn a_slope_cell_draws_the_law_of_its_fraction() {
+        let tree = lattice_tree(1 << 40);
+        let mut scratch = LatticeScratch::default();
+        let (wi, wo) = directions_about(DVec3::new(0.12, 0.05, 1.0), 0.4);
+        let conic = SphericalConic::new(wi, wo, 6f64.to_radians()).expect("valid");
+        let ellipse = SlopeEllipse::of(&conic).expect("an ellipse");
+        let grid = tree
+            .slope_cells(&ellipse, &mut scratch.slopes)
+            .expect("cells");
+        let side = side_at(grid.level);
+        let mut rng = PointStream(99);
+        let mut cut = 0;
+        for cell in &scratch.slopes {
+            if cell.fraction <= 0.0 || cell.fraction >= 1.0 {
+                continue;
+            }
+            cut += 1;
+            let n = 100_000;
+            let (mut inside, mut drawn) = (0u32, [0u32; 4]);
+            for _ in 0..n {
+                let u = [rng.uniform(), rng.uniform(), rng.uniform()];
+                inside += u32::from(cell.holds_point(&ellipse, side, u));
+                let k = cell
+                    .squares
+                    .iter()
+                    .position(|square| std::ptr::eq(square, cell.square(u[0])))
+                    .expect("a square");
+                drawn[k] += 1;
+            }
+            let share = f64::from(inside) / f64::from(n);
+            let error = 4.0 * (cell.fraction * (1.0 - cell.fraction) / f64::from(n)).sqrt();
+            assert!(
+                (share - cell.fraction).abs() < error + 0.003 * cell.fraction,
+                "{share} against ν {}",
+                cell.fraction
+            );
+            let mut below = 0.0;
+            for (k, square) in cell.squares.iter().enumerate() {
+                let up_to = square.share_up_to.min(1.0).max(below);
+                let p = up_to - below;
+                let got = f64::from(drawn[k]) / f64::from(n);
+                assert!(
+                    (got - p).abs() < 4.0 * (p * (1.0 - p) / f64::from(n)).sqrt() + 1e-9,
+                    "square {k}: {got} against {p}"
+                );
+                below = up_to;
+            }
+        }
+        assert!(cut >= 4, "{cut} cut cells");
+        // Shares with squares of probability 0 first, between and last.
+        let mut cell = scratch.slopes[0];
+        for (k, share) in [0.0, 0.5, 0.5, f64::INFINITY].into_iter().enumerate() {
+            cell.squares[k].share_up_to = share;
+        }
+        for u in [0.0, 0.25, 0.499_999, 0.5, 0.75, 1.0 - 1e-16] {
+            let k = cell
+                .squares
+                .iter()
+                .position(|square| std::ptr::eq(square, cell.square(u)))
+                .expect("a square");
+            assert_eq!(k, if u < 0.5 { 1 } else { 3 }, "u = {u}");
+        }
+    }
+
+    /// λ̃ against the cells' λ across the lobe (Beckmann α = 0.1, half-vectors 0 to 3 α off
+    /// the normal, cones of 1° to 6°): 1.00–1.15 λ up to α off the peak, lower on the flank
+    /// where P22 is convex over a wide cone (0.65 λ at 2 α, 0.30 λ at 3 α for 6°). Never well
+    /// above λ, so no sparse query is sent to the lattice by the estimate.
+    #[test]
+    fn the_estimate_follows_the_cells_expected_count() {
+        let tree = lattice_tree(1 << 40);
+        let mut scratch = LatticeScratch::default();
+        for theta_h in [0.0f64, 0.05, 0.1, 0.2, 0.3] {
+            for gamma in [1f64, 3.0, 6.0].map(f64::to_radians) {
+                let h = DVec3::new(theta_h.sin(), 0.0, theta_h.cos());
+                let (wi, wo) = directions_about(h, 0.3);
+                let conic = SphericalConic::new(wi, wo, gamma).expect("valid");
+                let ellipse = SlopeEllipse::of(&conic).expect("an ellipse");
+                let grid = tree
+                    .slope_cells(&ellipse, &mut scratch.slopes)
+                    .expect("cells");
+                let ratio = tree.slope_density(ellipse.center) * ellipse.area / grid.in_conic;
+                let lowest = if theta_h <= 0.1 { 0.99 } else { 0.25 };
+                assert!(
+                    (lowest..1.16).contains(&ratio),
+                    "θ_h {theta_h}, γ {gamma}: λ̃/λ = {ratio}"
+                );
+            }
+        }
+    }
+
     /// The weight comes from λ̃, before any cell: a query below the band builds none (the
     /// tree answers, and pays only for λ̃), λ̃ is within 25% of the cells' λ across the
     /// band, and the weight moves without jumps as the cone widens across the grids' levels.
     #[test]
     fn the_band_is_decided_before_the_cells() {
-        let config = CountTreeConfig {
-            particles: 1 << 33,
-            dense: DenseCounts::Lattice,
-            ..CountTreeConfig::default()
-        };
-        let tree = CountTree::new(config, beckmann(0.1)).expect("valid");
+        let tree = lattice_tree(1 << 33);
         let mut scratch = LatticeScratch::default();
-        let h = DVec3::new(0.06, 0.04, 1.0).normalize();
-        let t = h.cross(DVec3::Z).normalize();
-        let wi = (0.4f64.cos() * h + 0.4f64.sin() * t).normalize();
-        let wo = 2.0 * wi.dot(h) * h - wi;
+        let (wi, wo) = directions_about(DVec3::new(0.06, 0.04, 1.0), 0.4);
         let mut answer = |gamma: f64, side: f64| {
             let conic = SphericalConic::new(wi, wo, gamma).expect("valid");
             let footprint = Footprint::new(
