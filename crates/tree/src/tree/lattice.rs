@@ -194,7 +194,7 @@ pub(crate) struct LatticeScratch {
 pub(super) struct LatticeAnswer {
     /// λ, the expected count.
     pub(super) expected: f64,
-    /// The weight t of the lattice's count (0: the tree alone).
+    /// The weight t of the lattice's count, in (0, 1] (`None` stands for the tree alone).
     pub(super) weight: f64,
     /// The lattice's count.
     pub(super) count: f64,
@@ -698,12 +698,7 @@ mod tests {
     /// cells, is 5% low at 2.5 α.)
     #[test]
     fn the_lattice_expects_the_process_count() {
-        let config = CountTreeConfig {
-            particles: 1 << 40,
-            dense: DenseCounts::Lattice,
-            ..CountTreeConfig::default()
-        };
-        let tree = CountTree::new(config, beckmann(0.1)).expect("valid");
+        let tree = lattice_tree(1 << 40);
         let mut scratch = QueryScratch::new();
         let mut checked = 0;
         for &(theta_h, theta_d, gamma) in &[
@@ -769,12 +764,7 @@ mod tests {
     /// are Poisson(λ)'s within four standard errors.
     #[test]
     fn the_lattice_places_a_poisson_process() {
-        let config = CountTreeConfig {
-            particles: 22_000_000,
-            dense: DenseCounts::Lattice,
-            ..CountTreeConfig::default()
-        };
-        let tree = CountTree::new(config, beckmann(0.1)).expect("valid");
+        let tree = lattice_tree(22_000_000);
         let h = DVec3::new(0.08, 0.06, 1.0).normalize();
         let t = h.cross(DVec3::Z).normalize();
         let wi = (0.5f64.cos() * h + 0.5f64.sin() * t).normalize();
@@ -830,12 +820,7 @@ mod tests {
     /// the squares' mass is the footprint's area (its overlaps count every translate).
     #[test]
     fn footprints_wider_than_a_tile_meet_each_square_once() {
-        let config = CountTreeConfig {
-            particles: 1 << 40,
-            dense: DenseCounts::Lattice,
-            ..CountTreeConfig::default()
-        };
-        let tree = CountTree::new(config, beckmann(0.1)).expect("valid");
+        let tree = lattice_tree(1 << 40);
         let mut scratch = LatticeScratch::default();
         for (dx, dy) in [
             (DVec2::new(1.2, 0.0), DVec2::new(0.0, 0.01)),

@@ -118,7 +118,6 @@ impl CountTree {
         }
         if self.config.dense == DenseCounts::Lattice
             && let Some(lattice) = self.lattice_answer(footprint, conic, &mut scratch.lattice)
-            && lattice.weight > 0.0
         {
             let cells = [lattice.cells; 2];
             if lattice.weight >= 1.0 {
