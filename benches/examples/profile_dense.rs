@@ -1,9 +1,10 @@
 //! Times the dense-glitter workload of `cargo xtask validate --only dense` (Beckmann α = 0.1,
 //! γ = 1°, highlight queries with footprint side 10⁻³) in a plain loop, for profilers:
 //! `cargo run --release -p glint-benches --example profile_dense [N ...]` (default N = 10⁶ and
-//! 10¹⁰, alternating). `DENSE=exact` counts exactly, `DENSE=lattice` takes the lattice regime, `NODE_SCALE=s` sets the sampled mode's
-//! node scale, `EPSILON=e` Eq. 10's ε (0.1), `SECONDS` the time per N (1), `ROUNDS=k` exactly
-//! k passes over the 3000 queries instead (for callgrind), `STATS=1` the counts' statistics too.
+//! 10¹⁰, alternating) in the default dense mode (the lattice regime); `DENSE=sampled` takes
+//! the sampled mode, `DENSE=exact` counts exactly, `NODE_SCALE=s` sets the sampled node scale,
+//! `EPSILON=e` Eq. 10's ε (0.1), `SECONDS` the time per N (1), `ROUNDS=k` exactly k passes
+//! over the 3000 queries instead (for callgrind), `STATS=1` the counts' statistics too.
 
 use std::time::{Duration, Instant};
 
@@ -21,12 +22,11 @@ fn main() {
     if densities.is_empty() {
         densities = vec![1e6, 1e10];
     }
+    let node_scale = env("NODE_SCALE").unwrap_or(DenseCounts::DEFAULT_NODE_SCALE);
     let dense = match std::env::var("DENSE").as_deref() {
         Ok("exact") => DenseCounts::Exact,
-        Ok("lattice") => DenseCounts::Lattice,
-        _ => DenseCounts::Sampled {
-            node_scale: env("NODE_SCALE").unwrap_or(DenseCounts::DEFAULT_NODE_SCALE),
-        },
+        Ok("sampled") => DenseCounts::Sampled { node_scale },
+        _ => DenseCounts::Lattice { node_scale },
     };
     let mut rng = SplitMix64::new(4242);
     let workload: Vec<_> = (0..3000)

@@ -127,12 +127,13 @@ class Material:
     default, glint-tracer's τ; 0 = never, every query traversed),
     and, keyword only, ``expected_footprint_area`` (Eq. 11), ``pdf_quadrature`` (the
     sampler pdf's rule over the cone: "cubature", the default, or "qmc", the paper's),
-    ``pdf_points`` (its QMC points, in [1, 4096]), ``dense`` ("sampled", the default: partly
-    covered nodes at the query's scale that hold many particles answer from a rescaled sample,
-    with the exact counts' mean and correlations at a bounded cost; or "exact": every particle
-    resolved; or "lattice": queries expecting 8 or more particles answered from a Poisson
-    process drawn at their own scale, a cost that stops growing with N) and ``dense_node_scale`` (the largest node sampled, in widths of the query, in
-    (0, 16]; 1 by default: larger is faster and lumpier).
+    ``pdf_points`` (its QMC points, in [1, 4096]), ``dense`` ("lattice", the default: queries
+    expecting 8 or more particles answered from a Poisson process drawn at their own scale,
+    with the exact counts' mean, dispersion and correlations at a cost that stops growing with
+    N, blended with the tree from 4 to 8, others as "sampled"; or "sampled": partly covered
+    nodes at the query's scale that hold many particles answer from a rescaled sample; or
+    "exact": every particle resolved) and ``dense_node_scale`` (the largest node sampled, in
+    widths of the query, in (0, 16]; 1 by default: larger is faster and lumpier).
 
     Maps vary the material over its texture square (keyword only; NumPy arrays, row 0 at the
     top of the texture, v from 1 − 1/H to 1, column 0 starting at u = 0, the map tiling with
@@ -156,7 +157,7 @@ class Material:
                  gamma_deg=None, epsilon=0.1, seed=0, fresnel=None, multinomial="exact",
                  negligible_count=1e-12, *, expected_footprint_area=1e-6, pdf_quadrature="cubature",
                  pdf_points=64, gamma_degrees=None, density_map=None, alpha_map=None,
-                 tint_map=None, roughness_levels=8, dense="sampled", dense_node_scale=1.0,
+                 tint_map=None, roughness_levels=8, dense="lattice", dense_node_scale=1.0,
                  map_filter="nearest"):
         if gamma_deg is not None:
             if gamma_degrees is not None:

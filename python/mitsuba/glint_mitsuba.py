@@ -68,8 +68,8 @@ class GlintBSDF(mi.BSDF):
     ``particles`` (1e6), ``gamma_degrees`` (1; ``gamma_deg``, its older name, still works,
     deprecated), ``epsilon`` (0.1), ``seed`` (0), ``multinomial``
     ("exact"), ``negligible_count`` (1e-12), ``expected_footprint_area`` (1e-6),
-    ``pdf_quadrature`` ("cubature", or "qmc"), ``pdf_points`` (64), ``dense`` ("sampled",
-    "exact" or "lattice"), ``dense_node_scale`` (1), ``roughness_levels`` (8;
+    ``pdf_quadrature`` ("cubature", or "qmc"), ``pdf_points`` (64), ``dense`` ("lattice",
+    "sampled" or "exact"), ``dense_node_scale`` (1), ``roughness_levels`` (8;
     without an ``alpha_map`` it changes nothing), ``map_filter`` ("nearest", or "bilinear":
     how ``density_map`` and ``alpha_map`` are reconstructed between texels; ``tint_map`` stays
     nearest): as ``glint.Material``, which checks them (an

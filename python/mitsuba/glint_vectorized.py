@@ -74,7 +74,7 @@ def material_parameters(props):
         negligible_count=get("negligible_count", 1e-12),
         expected_footprint_area=get("expected_footprint_area", 1e-6),
         pdf_quadrature=get("pdf_quadrature", "cubature"), pdf_points=get("pdf_points", 64),
-        roughness_levels=get("roughness_levels", 8), dense=get("dense", "sampled"),
+        roughness_levels=get("roughness_levels", 8), dense=get("dense", "lattice"),
         dense_node_scale=get("dense_node_scale", 1.0), map_filter=get("map_filter", "nearest"))
     maps, sources = maps_from_properties(props)
     return params, maps, sources, uv_scale
@@ -226,7 +226,7 @@ def register():
              - as ``glint.Material``
            * - dense, dense_node_scale
              - string, float
-             - sampled, 1
+             - lattice, 1
              - as ``glint.Material``
            * - negligible_count
              - float

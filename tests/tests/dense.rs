@@ -24,7 +24,7 @@ fn tree_with_epsilon(particles: f64, epsilon: f64, dense: DenseCounts) -> CountT
     CountTree::new(config, beckmann_density(0.1, 0.1)).expect("valid configuration")
 }
 
-const SAMPLED: DenseCounts = DenseCounts::DEFAULT;
+const SAMPLED: DenseCounts = DenseCounts::Sampled { node_scale: 1.0 };
 
 /// At N = 10¹¹ (180 particles per footprint on this conic; nodes of ≥ 128 particles at its
 /// scale are sampled) the sampled counts have the exact counts' mean, dispersion and

@@ -1,4 +1,4 @@
-//! The lattice regime (`DenseCounts::Lattice`): the statistics of exact counts from a Poisson
+//! The lattice regime (`DenseCounts::Lattice`, the default): the statistics of exact counts from a Poisson
 //! process drawn at the query's scale, a cost that does not depend on N, determinism and
 //! continuity, and the tree's answers wherever the lattice does not answer.
 
@@ -26,7 +26,7 @@ fn tree(particles: f64, dense: DenseCounts) -> CountTree {
 #[test]
 fn lattice_counts_keep_the_exact_statistics() {
     let exact = dense_statistics(&tree(1e11, DenseCounts::Exact), 1000, 5);
-    let lattice = dense_statistics(&tree(1e11, DenseCounts::Lattice), 1000, 5);
+    let lattice = dense_statistics(&tree(1e11, DenseCounts::DEFAULT), 1000, 5);
     assert!(exact.mean > 100.0, "the workload is dense: {exact:?}");
     assert!(
         (lattice.mean / exact.mean - 1.0).abs() < 0.012,
@@ -52,7 +52,7 @@ fn lattice_counts_keep_the_exact_statistics() {
 #[test]
 fn blended_counts_keep_the_exact_statistics() {
     let exact = dense_statistics(&tree(3.16e9, DenseCounts::Exact), 1000, 5);
-    let blended = dense_statistics(&tree(3.16e9, DenseCounts::Lattice), 1000, 5);
+    let blended = dense_statistics(&tree(3.16e9, DenseCounts::DEFAULT), 1000, 5);
     assert!((4.5..7.0).contains(&exact.mean), "{exact:?}");
     assert!(
         (blended.mean / exact.mean - 1.0).abs() < 0.06,
@@ -79,7 +79,7 @@ fn lattice_query_cost_does_not_depend_on_n() {
         .collect();
     let mut scratch = QueryScratch::new();
     let mut nodes = |particles: f64| {
-        let tree = tree(particles, DenseCounts::Lattice);
+        let tree = tree(particles, DenseCounts::DEFAULT);
         workload
             .iter()
             .map(|(footprint, conic)| tree.query(footprint, conic, &mut scratch).nodes_visited)
@@ -98,11 +98,11 @@ fn lattice_query_cost_does_not_depend_on_n() {
 /// continuously, their points and the placed particles only where one crosses an edge.
 #[test]
 fn lattice_counts_are_deterministic_and_continuous() {
-    assert_deterministic_and_continuous(&tree(1e13, DenseCounts::Lattice));
+    assert_deterministic_and_continuous(&tree(1e13, DenseCounts::DEFAULT));
 }
 
 /// Queries expecting few particles, and coloured materials at any N, are the tree's: the
-/// lattice mode answers them as `Sampled { node_scale: 1 }` does, bit for bit.
+/// lattice mode answers them as `Sampled` with its node scale does, bit for bit.
 #[test]
 fn the_tree_answers_where_the_lattice_does_not() {
     let mut rng = SplitMix64::new(4242);
@@ -110,11 +110,31 @@ fn the_tree_answers_where_the_lattice_does_not() {
         .map(|_| highlight_query(0.1, 1f64.to_radians(), SIDE, &mut rng))
         .collect();
     let mut scratch = QueryScratch::new();
-    let sparse = [
-        tree(1e6, DenseCounts::Lattice),
-        tree(1e6, DenseCounts::DEFAULT),
-    ];
-    let coloured = [DenseCounts::Lattice, DenseCounts::DEFAULT].map(|dense| {
+    let lattice = |node_scale| DenseCounts::Lattice { node_scale };
+    let sampled = |node_scale| DenseCounts::Sampled { node_scale };
+    let sparse = [tree(1e6, lattice(1.0)), tree(1e6, sampled(1.0))];
+    // The lattice's own node scale is the one its tree samples with. At N = 10⁹ queries expect
+    // about 2 particles and nodes two query widths across hold enough to be sampled; the
+    // queries the lattice leaves to the tree (λ̃ < 4, whatever the node scale) are those it
+    // answers as the sampled mode at node scale 1.
+    let at_1e9 = [1.0, 2.0].map(|s| [tree(1e9, lattice(s)), tree(1e9, sampled(s))]);
+    let (mut left_to_tree, mut scale_matters) = (0, 0);
+    for (footprint, conic) in &workload {
+        let [[l1, s1], [l2, s2]] = at_1e9.each_ref().map(|pair| {
+            pair.each_ref()
+                .map(|t| t.query(footprint, conic, &mut scratch))
+        });
+        if l1 == s1 {
+            assert_eq!(l2, s2);
+            left_to_tree += 1;
+            scale_matters += usize::from(s2.count != s1.count);
+        }
+    }
+    assert!(
+        left_to_tree >= 20 && scale_matters >= 5,
+        "{left_to_tree}, {scale_matters}"
+    );
+    let coloured = [lattice(1.0), sampled(1.0)].map(|dense| {
         let config = CountTreeConfig {
             particles: 1e12 as u64,
             seed: 77,
@@ -137,7 +157,7 @@ fn the_tree_answers_where_the_lattice_does_not() {
 /// in the scratch).
 #[test]
 fn lattice_queries_do_not_allocate() {
-    let tree = tree(1e12, DenseCounts::Lattice);
+    let tree = tree(1e12, DenseCounts::DEFAULT);
     let mut rng = SplitMix64::new(5);
     let workload: Vec<_> = (0..300)
         .map(|_| highlight_query(0.1, 1f64.to_radians(), SIDE, &mut rng))

@@ -10,8 +10,9 @@
 //! The queries cover both split kinds (footprints smaller and larger than Eq. 11 plans for),
 //! leaves (a few hundred particles in the footprint, and sparse materials), exact evaluation
 //! and ε > 0, the normal approximation of the multinomial, coloured particles (per-channel
-//! Dirichlet areas, Fig. 8), a hyperbolic conic, and footprints that wrap: across the unit
-//! square's edge, far from the origin, and over several tiles.
+//! Dirichlet areas, Fig. 8), a hyperbolic conic, footprints that wrap: across the unit
+//! square's edge, far from the origin, and over several tiles, and the dense modes: sampled
+//! nodes, and the lattice regime alone and in its band with the tree.
 
 use glam::{DVec2, DVec3};
 use glint_brdf::{
@@ -34,8 +35,8 @@ struct Case {
 }
 
 /// The pins' base material: the paper's ε = 0.1 and exact counts, as the pins were taken
-/// with (the library's defaults are now ε = 0 and sampled dense nodes; those have a case of
-/// their own).
+/// with (the library's default dense mode is now the lattice; it and the sampled mode have
+/// cases of their own).
 fn beckmann(alpha: f64) -> GlintParameters {
     GlintParameters {
         epsilon: 0.1,
@@ -47,6 +48,16 @@ fn beckmann(alpha: f64) -> GlintParameters {
 fn cases() -> Vec<Case> {
     let near = |theta: f64| ((theta, 0.3), (theta * 0.9, 0.3 + std::f64::consts::PI));
     let (wi, wo) = near(0.4);
+    // A pixel-sized footprint near the highlight, for the dense materials.
+    let dense_query = Case {
+        name: "",
+        material: || paper_defaults(1e12),
+        uv: [0.37, 0.81],
+        duv_dx: [1e-3, 0.0],
+        duv_dy: [0.0, 1e-3],
+        wi,
+        wo,
+    };
     vec![
         Case {
             name: "the paper's defaults (N = 10⁶, γ = 1°, ε = 0.1), a 0.03 footprint",
@@ -181,24 +192,43 @@ fn cases() -> Vec<Case> {
             wo: (1.45, std::f64::consts::PI - 0.05),
         },
         Case {
-            name: "dense nodes sampled (the defaults: ε = 0.1, node scale 1), N = 10¹²",
+            name: "dense nodes sampled (ε = 0.1, node scale 1), N = 10¹²",
             material: || GlintParameters {
-                particles: 1_000_000_000_000,
-                ..GlintParameters::new(
-                    Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap(),
-                )
+                dense: DenseCounts::Sampled { node_scale: 1.0 },
+                ..paper_defaults(1e12)
             },
-            uv: [0.37, 0.81],
-            duv_dx: [1e-3, 0.0],
-            duv_dy: [0.0, 1e-3],
+            ..dense_query
+        },
+        // The lattice regime's draws are a function of the material and the query's lattice,
+        // as the particles are of the tree: pinned alike.
+        Case {
+            name: "the lattice alone (the defaults: ε = 0.1, dense = lattice), N = 10¹²",
+            material: || paper_defaults(1e12),
+            ..dense_query
+        },
+        Case {
+            name: "the lattice's band with the tree (the defaults), N = 10⁶, a 0.03 footprint",
+            material: || paper_defaults(1e6),
+            uv: [0.3, 0.6],
+            duv_dx: [3e-2, 0.0],
+            duv_dy: [0.0, 3e-2],
             wi,
             wo,
         },
     ]
 }
 
+/// The library's defaults (Beckmann α = 0.1, γ = 1°, ε = 0.1, the lattice for dense queries)
+/// with N = `particles`.
+fn paper_defaults(particles: f64) -> GlintParameters {
+    GlintParameters {
+        particles: particles as u64,
+        ..GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap())
+    }
+}
+
 /// count, then f̂ per channel, for each case in order.
-const PINNED: [(f64, [f64; 3]); 11] = [
+const PINNED: [(f64, [f64; 3]); 13] = [
     (
         6.0,
         [7.506622317930054, 7.506622317930054, 7.506622317930054],
@@ -239,6 +269,14 @@ const PINNED: [(f64, [f64; 3]); 11] = [
     (
         7855.977046745306,
         [8.845777894236685, 8.845777894236685, 8.845777894236685],
+    ),
+    (
+        7989.81393885859,
+        [8.99647734443168, 8.99647734443168, 8.99647734443168],
+    ),
+    (
+        10.788093960999202,
+        [13.497024482593842, 13.497024482593842, 13.497024482593842],
     ),
 ];
 

@@ -70,7 +70,7 @@ use crate::surface_maps::{RoughnessLevel, RoughnessMap, TintMap, WeightedTint, r
 /// | `particles` | N, flakes per unit texture square | 10⁶ |
 /// | `gamma_radians` | the cone radius γ in radians, in [10⁻⁶, 60°] (C, Python, `eval` and scene files take `gamma_degrees`) | 1° |
 /// | `epsilon` | ε of Eq. 10: a partial node whose binomial spread is below ε × the count adds its expected share (0 = off) | 0.1 |
-/// | `dense` | how dense partial nodes at the query's scale are answered: rescaled samples ([`DenseCounts::Sampled`], the exact counts' mean and correlations at a bounded cost) or every particle ([`DenseCounts::Exact`]) | sampled, node scale 1 |
+/// | `dense` | how queries expecting many particles are answered: a Poisson process drawn at the query's scale ([`DenseCounts::Lattice`], the exact counts' statistics at a cost that stops growing with N), rescaled samples of dense partial nodes ([`DenseCounts::Sampled`], the same at a bounded cost) or every particle ([`DenseCounts::Exact`]) | lattice, node scale 1 |
 /// | `seed` | the particle set | 0 |
 /// | `fresnel` | F | none (F = 1) |
 /// | `multinomial` | exact splits or the paper's normal approximation | exact |

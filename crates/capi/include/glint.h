@@ -142,7 +142,7 @@ enum GlintDense
   /**
    * Queries expecting many particles are answered from a Poisson process drawn on a lattice
    * at their own scale: the exact counts' mean and correlations at a cost that does not grow
-   * with N; others as `GLINT_DENSE_SAMPLED`.
+   * with N; others as `GLINT_DENSE_SAMPLED`. The default.
    */
   GLINT_DENSE_LATTICE = 2,
 };
@@ -216,7 +216,7 @@ typedef struct GlintScratch GlintScratch;
  * | `alpha_map`, `_width`, `_height` | NULL, 0, 0 | values in [1e-4, 1] |
  * | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
  * | `roughness_levels` | 8 | 1 to 64 |
- * | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
+ * | `dense` | `GLINT_DENSE_LATTICE` | a `GlintDense` |
  * | `dense_node_scale` | 1 | (0, 16]: the largest node sampled, in widths of the query |
  * | `map_filter` | `GLINT_MAP_FILTER_NEAREST` | a `GlintMapFilter` (density and roughness maps) |
  *
@@ -342,7 +342,8 @@ typedef struct GlintMaterialParams {
    */
   uint32_t dense;
   /**
-   * The largest node `GLINT_DENSE_SAMPLED` answers from its sample, in widths of the query.
+   * The largest node `GLINT_DENSE_SAMPLED` (and `GLINT_DENSE_LATTICE` where it leaves a
+   * query to the tree) answers from its sample, in widths of the query.
    */
   double dense_node_scale;
   /**

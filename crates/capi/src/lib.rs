@@ -602,7 +602,7 @@ impl Default for GlintMaterialParams {
             tint_map_width: 0,
             tint_map_height: 0,
             roughness_levels: 8,
-            dense: GlintDense::GLINT_DENSE_SAMPLED as u32,
+            dense: GlintDense::GLINT_DENSE_LATTICE as u32,
             dense_node_scale: 1.0,
             map_filter: GlintMapFilter::GLINT_MAP_FILTER_NEAREST as u32,
         }
@@ -746,7 +746,9 @@ fn glint_parameters(p: &GlintMaterialParams) -> Result<GlintParameters, Failure>
             node_scale: p.dense_node_scale,
         },
         EXACT_DENSE => DenseCounts::Exact,
-        LATTICE => DenseCounts::Lattice,
+        LATTICE => DenseCounts::Lattice {
+            node_scale: p.dense_node_scale,
+        },
         other => {
             return Err(Failure::parameter(format!(
                 "dense = {other} is invalid: use GLINT_DENSE_SAMPLED, GLINT_DENSE_EXACT or \

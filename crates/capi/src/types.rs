@@ -82,7 +82,7 @@ pub enum GlintDense {
     GLINT_DENSE_EXACT = 1,
     /// Queries expecting many particles are answered from a Poisson process drawn on a lattice
     /// at their own scale: the exact counts' mean and correlations at a cost that does not grow
-    /// with N; others as `GLINT_DENSE_SAMPLED`.
+    /// with N; others as `GLINT_DENSE_SAMPLED`. The default.
     GLINT_DENSE_LATTICE = 2,
 }
 
@@ -134,7 +134,7 @@ pub enum GlintPdfQuadrature {
 /// | `alpha_map`, `_width`, `_height` | NULL, 0, 0 | values in [1e-4, 1] |
 /// | `tint_map`, `_width`, `_height` | NULL, 0, 0 | 3 values per texel in [0, 1] |
 /// | `roughness_levels` | 8 | 1 to 64 |
-/// | `dense` | `GLINT_DENSE_SAMPLED` | a `GlintDense` |
+/// | `dense` | `GLINT_DENSE_LATTICE` | a `GlintDense` |
 /// | `dense_node_scale` | 1 | (0, 16]: the largest node sampled, in widths of the query |
 /// | `map_filter` | `GLINT_MAP_FILTER_NEAREST` | a `GlintMapFilter` (density and roughness maps) |
 ///
@@ -206,7 +206,8 @@ pub struct GlintMaterialParams {
     pub roughness_levels: u32,
     /// How dense partly covered nodes are answered: a `GlintDense`.
     pub dense: u32,
-    /// The largest node `GLINT_DENSE_SAMPLED` answers from its sample, in widths of the query.
+    /// The largest node `GLINT_DENSE_SAMPLED` (and `GLINT_DENSE_LATTICE` where it leaves a
+    /// query to the tree) answers from its sample, in widths of the query.
     pub dense_node_scale: f64,
     /// How `density_map` and `alpha_map` are reconstructed between texels: a
     /// `GlintMapFilter` (the tint map is nearest under either).

@@ -154,7 +154,9 @@ fn bits(values: &[f64]) -> Vec<u64> {
     values.iter().map(|v| v.to_bits()).collect()
 }
 
-/// The first case of `tests/tests/stability.rs`: the paper's defaults, a 0.03 footprint.
+/// The first case of `tests/tests/stability.rs`: the paper's defaults with exact counts, a 0.03
+/// footprint (the default dense mode answers it in the lattice's band with the tree: another
+/// case there).
 const PINNED_FOOTPRINT: GlintFootprint = GlintFootprint {
     uv: [0.3, 0.6],
     duv_dx: [0.03, 0.0],
@@ -162,6 +164,14 @@ const PINNED_FOOTPRINT: GlintFootprint = GlintFootprint {
 };
 const PINNED_COUNT: f64 = 6.0;
 const PINNED_F_HAT: f64 = 7.506622317930054;
+
+/// The defaults with exact counts, as the pinned query is taken.
+fn exact_params() -> GlintMaterialParams {
+    GlintMaterialParams {
+        dense: GlintDense::GLINT_DENSE_EXACT as u32,
+        ..default_params()
+    }
+}
 
 fn pinned_directions() -> ([f64; 3], [f64; 3]) {
     (
@@ -172,7 +182,7 @@ fn pinned_directions() -> ([f64; 3], [f64; 3]) {
 
 #[test]
 fn the_pinned_query_of_the_stability_test() {
-    let handles = Handles::new(&default_params());
+    let handles = Handles::new(&exact_params());
     let (wi, wo) = pinned_directions();
     let e = handles.eval(&PINNED_FOOTPRINT, wi, wo);
     assert_eq!(e.count, PINNED_COUNT);
@@ -411,14 +421,19 @@ fn answers_are_glint_brdf_answers_bit_for_bit() {
 
 #[test]
 fn directions_need_not_have_unit_length() {
-    let handles = Handles::new(&default_params());
-    let (wi, wo) = pinned_directions();
-    let unit = handles.eval(&PINNED_FOOTPRINT, wi, wo);
-    for scale in [3.0, 1e-200, 1e200] {
-        let scaled = |v: [f64; 3]| v.map(|x| x * scale);
-        let e = handles.eval(&PINNED_FOOTPRINT, scaled(wi), scaled(wo));
-        assert_eq!(e.count, unit.count);
-        assert!((e.f_hat[0] - unit.f_hat[0]).abs() <= 1e-12 * unit.f_hat[0]);
+    // Exact counts are whole and equal; the lattice's band (the defaults here) blends real
+    // counts, equal to rounding (a direction scaled and normalized moves by an ulp).
+    for (params, tolerance) in [(exact_params(), 0.0), (default_params(), 1e-12)] {
+        let handles = Handles::new(&params);
+        let (wi, wo) = pinned_directions();
+        let unit = handles.eval(&PINNED_FOOTPRINT, wi, wo);
+        assert!(unit.count > 0.0);
+        for scale in [3.0, 1e-200, 1e200] {
+            let scaled = |v: [f64; 3]| v.map(|x| x * scale);
+            let e = handles.eval(&PINNED_FOOTPRINT, scaled(wi), scaled(wo));
+            assert!((e.count - unit.count).abs() <= tolerance * unit.count);
+            assert!((e.f_hat[0] - unit.f_hat[0]).abs() <= 1e-12 * unit.f_hat[0]);
+        }
     }
 }
 
@@ -444,7 +459,7 @@ fn defaults_are_glint_parameters_new_with_evals_negligible_count() {
     assert_eq!((p.gamma_degrees, p.epsilon, p.seed), (1.0, 0.1, 0));
     assert_eq!(
         (p.dense, p.dense_node_scale),
-        (GlintDense::GLINT_DENSE_SAMPLED as u32, 1.0)
+        (GlintDense::GLINT_DENSE_LATTICE as u32, 1.0)
     );
     assert_eq!(
         p.map_filter,

@@ -51,10 +51,10 @@ pub struct MaterialSpec {
     pub gamma_degrees: f64,
     /// ε of Eq. 10; defaults to 0.1.
     pub epsilon: Option<f64>,
-    /// How dense nodes are answered: `"sampled"` (the default), `"exact"` or `"lattice"`.
+    /// How dense queries are answered: `"lattice"` (the default), `"sampled"` or `"exact"`.
     pub dense: Option<String>,
-    /// The largest node `"sampled"` answers from its sample, in widths of the query; defaults
-    /// to 2.
+    /// The largest node `"sampled"` (and `"lattice"` where it leaves a query to the tree)
+    /// answers from its sample, in widths of the query; defaults to 1.
     pub dense_node_scale: Option<f64>,
     /// The particle set, any 64-bit unsigned number; defaults to 0.
     pub seed: Option<u64>,
@@ -194,7 +194,7 @@ impl MaterialSpec {
             .map(|scale| finite(scale, "material.dense_node_scale"))
             .transpose()?;
         parameters.dense =
-            DenseCounts::from_name(self.dense.as_deref().unwrap_or("sampled"), node_scale)
+            DenseCounts::from_name(self.dense.as_deref().unwrap_or("lattice"), node_scale)
                 .map_err(|e| format!("material: {e}"))?;
         parameters.multinomial = match self.multinomial.as_deref() {
             None | Some("exact") => MultinomialMode::Exact,

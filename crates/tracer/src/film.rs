@@ -493,6 +493,7 @@ type = "glint"
 alpha = 0.1
 particles = 1e9
 gamma = 1
+dense = "exact"
 [materials.plain]
 type = "diffuse"
 colour = 0.5
@@ -543,7 +544,8 @@ power = 20
             sum.add(counters);
         }
         assert_eq!(sum, statistics.glint);
-        // 10⁴ times the particles take more levels to resolve.
+        // 10⁴ times the particles take more levels to resolve (counted exactly: the lattice
+        // would answer the dense material from fewer cells).
         let [(_, sparse), (_, dense)] = &statistics.glint_by_material[..] else {
             unreachable!("two materials")
         };

@@ -283,7 +283,8 @@ impl CountTree {
                 epsilon: config.epsilon,
             });
         }
-        if let DenseCounts::Sampled { node_scale } = config.dense
+        if let DenseCounts::Sampled { node_scale } | DenseCounts::Lattice { node_scale } =
+            config.dense
             && !config.dense.is_valid()
         {
             return Err(TreeError::InvalidDenseNodeScale { node_scale });

@@ -42,7 +42,7 @@ pub(super) struct GlintSection {
     /// `gamma_degrees`'s older name, still read (deprecated); both at once are an error.
     gamma: Option<f64>,
     epsilon: Option<f64>,
-    /// "sampled" (the default) or "exact".
+    /// "lattice" (the default), "sampled" or "exact".
     dense: Option<String>,
     dense_node_scale: Option<f64>,
     seed: Option<u64>,
@@ -155,7 +155,7 @@ impl Builder<'_> {
         if let Some(epsilon) = g.epsilon {
             parameters.epsilon = epsilon;
         }
-        let dense = g.dense.as_deref().unwrap_or("sampled");
+        let dense = g.dense.as_deref().unwrap_or("lattice");
         parameters.dense = match DenseCounts::from_name(dense, g.dense_node_scale) {
             Ok(dense) => dense,
             Err(e) => {

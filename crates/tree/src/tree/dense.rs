@@ -104,13 +104,20 @@ pub enum DenseCounts {
     /// own scale (`super::lattice`): the exact counts' mean, dispersion and correlations at a
     /// cost bounded by the lattice's cells, not by N. Elsewhere (fewer particles, coloured
     /// materials, density maps varying at the query's scale, conics reaching the horizon) the
-    /// tree answers as with `Sampled { node_scale: 1 }`.
-    Lattice,
+    /// tree answers as with `Sampled { node_scale }`. The default.
+    Lattice {
+        /// The largest node the tree answers from its sample where the lattice leaves a
+        /// query to it, in widths of the query (0 < s ≤ 16), as in `Sampled`.
+        node_scale: f64,
+    },
 }
 
 impl DenseCounts {
-    /// The default: samples of nodes up to the query's width.
-    pub const DEFAULT: Self = Self::Sampled { node_scale: 1.0 };
+    /// The default: the lattice for queries expecting many particles, the tree with samples of
+    /// nodes up to the query's width for the others.
+    pub const DEFAULT: Self = Self::Lattice {
+        node_scale: Self::DEFAULT_NODE_SCALE,
+    };
 
     /// The default `node_scale` of [`DenseCounts::Sampled`]: larger scales cost less but make
     /// the counts lumpy (skewness 1.3 at 2, 5.3 at 4, against 0.2–0.3 at 1; `cargo xtask
@@ -121,7 +128,7 @@ impl DenseCounts {
     pub const NAMES: [&'static str; 3] = ["sampled", "exact", "lattice"];
 
     /// The mode named `name` (one of [`DenseCounts::NAMES`]) with `node_scale` (used by
-    /// "sampled"; `None` for the default).
+    /// "sampled" and by "lattice" where it leaves a query to the tree; `None` for the default).
     ///
     /// # Errors
     /// [`TreeError::UnknownDenseMode`] for another name, [`TreeError::InvalidDenseNodeScale`]
@@ -131,7 +138,7 @@ impl DenseCounts {
         let mode = match name {
             "sampled" => Self::Sampled { node_scale },
             "exact" => Self::Exact,
-            "lattice" => Self::Lattice,
+            "lattice" => Self::Lattice { node_scale },
             _ => return Err(TreeError::UnknownDenseMode),
         };
         if mode.is_valid() {
@@ -145,8 +152,10 @@ impl DenseCounts {
     #[must_use]
     pub fn is_valid(&self) -> bool {
         match *self {
-            Self::Exact | Self::Lattice => true,
-            Self::Sampled { node_scale } => node_scale > 0.0 && node_scale <= 16.0,
+            Self::Exact => true,
+            Self::Sampled { node_scale } | Self::Lattice { node_scale } => {
+                node_scale > 0.0 && node_scale <= 16.0
+            }
         }
     }
 }
@@ -189,8 +198,7 @@ impl CountTree {
     ) -> Option<DenseScales> {
         let node_scale = match self.config.dense {
             DenseCounts::Exact => return None,
-            DenseCounts::Sampled { node_scale } => node_scale,
-            DenseCounts::Lattice => DenseCounts::DEFAULT_NODE_SCALE,
+            DenseCounts::Sampled { node_scale } | DenseCounts::Lattice { node_scale } => node_scale,
         };
         let cell_across = node_scale * conic.gamma();
         Some(DenseScales {

@@ -675,7 +675,7 @@ mod tests {
     fn lattice_tree(particles: u64) -> CountTree {
         let config = CountTreeConfig {
             particles,
-            dense: DenseCounts::Lattice,
+            dense: DenseCounts::DEFAULT,
             ..CountTreeConfig::default()
         };
         CountTree::new(config, beckmann(0.1)).expect("valid")

@@ -116,7 +116,7 @@ impl CountTree {
         if self.config.many_tiles.averages(footprint) {
             return self.periodic_average(footprint, conic, scratch);
         }
-        if self.config.dense == DenseCounts::Lattice
+        if matches!(self.config.dense, DenseCounts::Lattice { .. })
             && let Some(lattice) = self.lattice_answer(footprint, conic, &mut scratch.lattice)
         {
             let cells = [lattice.cells; 2];
