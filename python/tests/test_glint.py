@@ -25,7 +25,7 @@ MATERIALS = [
     dict(distribution="beckmann", alpha=0.1, particles=1e12, gamma_degrees=0.5,
          negligible_count=1e-12, fresnel={"dielectric": {"eta": 1.5}}),
     dict(distribution="beckmann", alpha=0.1, particles=1e12, gamma_degrees=1.0, seed=5,
-         dense="lattice"),
+         dense="sampled"),
 ]
 
 

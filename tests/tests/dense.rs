@@ -90,7 +90,7 @@ fn sampled_query_cost_is_bounded_whatever_n() {
     assert!(at_1e10 < 160.0, "{at_1e10} nodes at N = 10¹⁰");
 }
 
-/// Sparse materials sample nothing: at N = 10⁶, 10⁸ and 10⁹ every count of the default mode
+/// Sparse materials sample nothing: at N = 10⁶, 10⁸ and 10⁹ every count of the sampled mode
 /// equals the `DenseCounts::Exact` count bit for bit, with ε = 0 and with ε = 0.1, but where
 /// Eq. 10 stopped a short query early before (it now waits for long queries): there the old
 /// count was an expectation (fractional) and the new one counts whole particles.

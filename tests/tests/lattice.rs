@@ -1,11 +1,17 @@
-//! The lattice regime (`DenseCounts::Lattice`, the default): the statistics of exact counts from a Poisson
+//! The lattice regime (`DenseCounts::Lattice`, the default): the statistics of exact counts
+//! from a Poisson
 //! process drawn at the query's scale, a cost that does not depend on N, determinism and
 //! continuity, and the tree's answers wherever the lattice does not answer.
 
 use glint_tests::SplitMix64;
 use glint_tests::counts::{beckmann_density, highlight_query};
 use glint_tests::dense::{SIDE, assert_deterministic_and_continuous, dense_statistics};
-use glint_tree::{CountTree, CountTreeConfig, DenseCounts, MAX_GRID_CELLS, QueryScratch};
+use glint_tree::{
+    CountTree, CountTreeConfig, DenseCounts, MAX_GRID_CELLS, QueryScratch, TreeError,
+};
+
+/// The lattice regime (the default), named so that these tests keep testing it.
+const LATTICE: DenseCounts = DenseCounts::Lattice { node_scale: 1.0 };
 
 fn tree(particles: f64, dense: DenseCounts) -> CountTree {
     let config = CountTreeConfig {
@@ -26,7 +32,7 @@ fn tree(particles: f64, dense: DenseCounts) -> CountTree {
 #[test]
 fn lattice_counts_keep_the_exact_statistics() {
     let exact = dense_statistics(&tree(1e11, DenseCounts::Exact), 1000, 5);
-    let lattice = dense_statistics(&tree(1e11, DenseCounts::DEFAULT), 1000, 5);
+    let lattice = dense_statistics(&tree(1e11, LATTICE), 1000, 5);
     assert!(exact.mean > 100.0, "the workload is dense: {exact:?}");
     assert!(
         (lattice.mean / exact.mean - 1.0).abs() < 0.012,
@@ -52,7 +58,7 @@ fn lattice_counts_keep_the_exact_statistics() {
 #[test]
 fn blended_counts_keep_the_exact_statistics() {
     let exact = dense_statistics(&tree(3.16e9, DenseCounts::Exact), 1000, 5);
-    let blended = dense_statistics(&tree(3.16e9, DenseCounts::DEFAULT), 1000, 5);
+    let blended = dense_statistics(&tree(3.16e9, LATTICE), 1000, 5);
     assert!((4.5..7.0).contains(&exact.mean), "{exact:?}");
     assert!(
         (blended.mean / exact.mean - 1.0).abs() < 0.06,
@@ -79,7 +85,7 @@ fn lattice_query_cost_does_not_depend_on_n() {
         .collect();
     let mut scratch = QueryScratch::new();
     let mut nodes = |particles: f64| {
-        let tree = tree(particles, DenseCounts::DEFAULT);
+        let tree = tree(particles, LATTICE);
         workload
             .iter()
             .map(|(footprint, conic)| tree.query(footprint, conic, &mut scratch).nodes_visited)
@@ -98,7 +104,7 @@ fn lattice_query_cost_does_not_depend_on_n() {
 /// continuously, their points and the placed particles only where one crosses an edge.
 #[test]
 fn lattice_counts_are_deterministic_and_continuous() {
-    assert_deterministic_and_continuous(&tree(1e13, DenseCounts::DEFAULT));
+    assert_deterministic_and_continuous(&tree(1e13, LATTICE));
 }
 
 /// Queries expecting few particles, and coloured materials at any N, are the tree's: the
@@ -157,7 +163,7 @@ fn the_tree_answers_where_the_lattice_does_not() {
 /// in the scratch).
 #[test]
 fn lattice_queries_do_not_allocate() {
-    let tree = tree(1e12, DenseCounts::DEFAULT);
+    let tree = tree(1e12, LATTICE);
     let mut rng = SplitMix64::new(5);
     let workload: Vec<_> = (0..300)
         .map(|_| highlight_query(0.1, 1f64.to_radians(), SIDE, &mut rng))
@@ -171,4 +177,30 @@ fn lattice_queries_do_not_allocate() {
         let _ = tree.query(footprint, conic, &mut scratch);
     }
     assert_eq!(crate::counting_allocator::allocations() - before, 0);
+}
+
+/// The lattice's node scale is checked as the sampled mode's is: a name with a scale outside
+/// (0, 16] and a tree configured with one are errors naming it.
+#[test]
+fn the_lattice_refuses_a_node_scale_outside_its_range() {
+    for node_scale in [0.0, -1.0, 17.0, f64::NAN] {
+        assert!(matches!(
+            DenseCounts::from_name("lattice", Some(node_scale)),
+            Err(TreeError::InvalidDenseNodeScale { .. })
+        ));
+        let config = CountTreeConfig {
+            dense: DenseCounts::Lattice { node_scale },
+            ..CountTreeConfig::default()
+        };
+        let error = CountTree::new(config, beckmann_density(0.1, 0.1)).err();
+        assert!(matches!(
+            error,
+            Some(TreeError::InvalidDenseNodeScale { .. })
+        ));
+        assert!(error.unwrap().to_string().contains("dense_node_scale"));
+    }
+    assert_eq!(
+        DenseCounts::from_name("lattice", Some(16.0)),
+        Ok(DenseCounts::Lattice { node_scale: 16.0 })
+    );
 }

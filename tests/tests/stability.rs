@@ -51,7 +51,7 @@ fn cases() -> Vec<Case> {
     // A pixel-sized footprint near the highlight, for the dense materials.
     let dense_query = Case {
         name: "",
-        material: || paper_defaults(1e12),
+        material: || dense_material(1e12, LATTICE),
         uv: [0.37, 0.81],
         duv_dx: [1e-3, 0.0],
         duv_dy: [0.0, 1e-3],
@@ -193,22 +193,19 @@ fn cases() -> Vec<Case> {
         },
         Case {
             name: "dense nodes sampled (ε = 0.1, node scale 1), N = 10¹²",
-            material: || GlintParameters {
-                dense: DenseCounts::Sampled { node_scale: 1.0 },
-                ..paper_defaults(1e12)
-            },
+            material: || dense_material(1e12, DenseCounts::Sampled { node_scale: 1.0 }),
             ..dense_query
         },
         // The lattice regime's draws are a function of the material and the query's lattice,
         // as the particles are of the tree: pinned alike.
         Case {
             name: "the lattice alone (the defaults: ε = 0.1, dense = lattice), N = 10¹²",
-            material: || paper_defaults(1e12),
+            material: || dense_material(1e12, LATTICE),
             ..dense_query
         },
         Case {
             name: "the lattice's band with the tree (the defaults), N = 10⁶, a 0.03 footprint",
-            material: || paper_defaults(1e6),
+            material: || dense_material(1e6, LATTICE),
             uv: [0.3, 0.6],
             duv_dx: [3e-2, 0.0],
             duv_dy: [0.0, 3e-2],
@@ -218,11 +215,15 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-/// The library's defaults (Beckmann α = 0.1, γ = 1°, ε = 0.1, the lattice for dense queries)
-/// with N = `particles`.
-fn paper_defaults(particles: f64) -> GlintParameters {
+/// The lattice regime (the library's default), named so that its pins stay its own.
+const LATTICE: DenseCounts = DenseCounts::Lattice { node_scale: 1.0 };
+
+/// The library's defaults (Beckmann α = 0.1, γ = 1°, ε = 0.1) with N = `particles` and the
+/// dense mode `dense`.
+fn dense_material(particles: f64, dense: DenseCounts) -> GlintParameters {
     GlintParameters {
         particles: particles as u64,
+        dense,
         ..GlintParameters::new(Microfacet::new(DistributionKind::Beckmann, 0.1, 0.1).unwrap())
     }
 }

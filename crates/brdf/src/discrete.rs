@@ -96,8 +96,8 @@ pub struct GlintParameters {
     pub gamma_radians: f64,
     /// ε of Eq. 10 (0 = off: no partial node is replaced by its expected share).
     pub epsilon: f64,
-    /// How partial nodes at the query's scale that hold many particles are answered (the
-    /// dense regime of `glint_tree`).
+    /// How queries expecting many particles, and partial nodes at the query's scale that hold
+    /// many, are answered (the dense regime of `glint_tree`).
     pub dense: DenseCounts,
     /// The material seed.
     pub seed: u64,
@@ -133,8 +133,9 @@ pub struct GlintParameters {
 }
 
 impl GlintParameters {
-    /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, dense nodes
-    /// answered from their samples (node scale 1; Eq. 10 then only for long queries), seed 0, F = 1,
+    /// The paper's defaults around a distribution: N = 10⁶, γ = 1°, ε = 0.1, queries expecting
+    /// many particles answered by the lattice regime (elsewhere dense nodes from their samples,
+    /// node scale 1; Eq. 10 then only for long queries), seed 0, F = 1,
     /// exact multinomials, no colour, α_s = 2α, cubature rules for the sampling pdf
     /// (64 QMC points when switched to QMC), footprints of 10⁻⁶, every
     /// query traversed (no negligible-query test), no maps (8 roughness levels for one).

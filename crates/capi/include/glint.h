@@ -123,7 +123,7 @@ typedef uint32_t GlintPdfQuadrature;
 #endif // __cplusplus
 
 /**
- * How dense partly covered nodes are answered (`GlintMaterialParams::dense`).
+ * How queries expecting many particles are answered (`GlintMaterialParams::dense`).
  */
 enum GlintDense
 #if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
@@ -338,7 +338,7 @@ typedef struct GlintMaterialParams {
    */
   uint32_t roughness_levels;
   /**
-   * How dense partly covered nodes are answered: a `GlintDense`.
+   * How queries expecting many particles are answered: a `GlintDense`.
    */
   uint32_t dense;
   /**

@@ -70,7 +70,7 @@ pub enum GlintMultinomial {
     GLINT_MULTINOMIAL_NORMAL = 1,
 }
 
-/// How dense partly covered nodes are answered (`GlintMaterialParams::dense`).
+/// How queries expecting many particles are answered (`GlintMaterialParams::dense`).
 #[repr(u32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[allow(non_camel_case_types)]
@@ -204,7 +204,7 @@ pub struct GlintMaterialParams {
     pub tint_map_height: u32,
     /// K, the most roughness levels of a roughness map (exact up to K distinct values).
     pub roughness_levels: u32,
-    /// How dense partly covered nodes are answered: a `GlintDense`.
+    /// How queries expecting many particles are answered: a `GlintDense`.
     pub dense: u32,
     /// The largest node `GLINT_DENSE_SAMPLED` (and `GLINT_DENSE_LATTICE` where it leaves a
     /// query to the tree) answers from its sample, in widths of the query.

@@ -73,8 +73,9 @@ impl fmt::Display for TreeError {
             ),
             Self::UnknownDenseMode => write!(
                 f,
-                "dense must be \"sampled\" (the default: dense nodes answer from rescaled \
-                 samples) or \"exact\" (every particle resolved)"
+                "dense must be \"lattice\" (the default: queries expecting many particles \
+                 answer from a Poisson process at their own scale), \"sampled\" (dense nodes \
+                 answer from rescaled samples) or \"exact\" (every particle resolved)"
             ),
             Self::InvalidExpectedQuery => write!(
                 f,

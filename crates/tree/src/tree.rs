@@ -63,8 +63,9 @@ pub struct CountTreeConfig {
     /// ε of Eq. 10 (0 = exact evaluation; the paper uses 0.1): a partial node whose binomial
     /// spread is below ε × the count adds its expected share.
     pub epsilon: f64,
-    /// How partial nodes at the query's scale are answered when they hold many particles:
-    /// resolved, or from their rescaled virtual samples (the dense regime, `dense`).
+    /// How queries expecting many particles are answered: from the lattice regime, from the
+    /// rescaled virtual samples of partial nodes at the query's scale, or resolved (the dense
+    /// regime, `dense`).
     pub dense: DenseCounts,
     /// Exact multinomial splits or the paper's normal approximation.
     pub multinomial: MultinomialMode,
@@ -147,8 +148,9 @@ impl Default for ManyTiles {
 }
 
 impl Default for CountTreeConfig {
-    /// N = 10⁶, seed 0, ε = 0.1, dense nodes answered from their samples up to twice the
-    /// query's scale, exact multinomials, planar overlaps, a footprint of 10⁻⁶
+    /// N = 10⁶, seed 0, ε = 0.1, the lattice regime for queries expecting many particles
+    /// (elsewhere dense nodes answered from their samples up to the query's scale), exact
+    /// multinomials, planar overlaps, a footprint of 10⁻⁶
     /// (a pixel of ~1000² over the texture) and the conic of γ = 1° at normal incidence,
     /// δ = 1e-5, 8 TEA cycles, depth guard 64, 6 cached levels, node budget 10⁶, no colour,
     /// footprints over more than 256 tiles (or spanning 4096) averaged.

@@ -675,7 +675,7 @@ mod tests {
     fn lattice_tree(particles: u64) -> CountTree {
         let config = CountTreeConfig {
             particles,
-            dense: DenseCounts::DEFAULT,
+            dense: DenseCounts::Lattice { node_scale: 1.0 },
             ..CountTreeConfig::default()
         };
         CountTree::new(config, beckmann(0.1)).expect("valid")
