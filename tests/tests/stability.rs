@@ -22,6 +22,7 @@ use glint_brdf::{
 use glint_tests::geometry::direction;
 
 /// One pinned query.
+#[derive(Clone, Copy)]
 struct Case {
     /// What the case covers.
     name: &'static str,
@@ -48,6 +49,16 @@ fn beckmann(alpha: f64) -> GlintParameters {
 fn cases() -> Vec<Case> {
     let near = |theta: f64| ((theta, 0.3), (theta * 0.9, 0.3 + std::f64::consts::PI));
     let (wi, wo) = near(0.4);
+    // The first case: the paper's defaults and a 0.03 footprint (also the lattice's band case).
+    let paper_query = Case {
+        name: "the paper's defaults (N = 10⁶, γ = 1°, ε = 0.1), a 0.03 footprint",
+        material: || beckmann(0.1),
+        uv: [0.3, 0.6],
+        duv_dx: [3e-2, 0.0],
+        duv_dy: [0.0, 3e-2],
+        wi,
+        wo,
+    };
     // A pixel-sized footprint near the highlight, for the dense materials.
     let dense_query = Case {
         name: "",
@@ -59,15 +70,7 @@ fn cases() -> Vec<Case> {
         wo,
     };
     vec![
-        Case {
-            name: "the paper's defaults (N = 10⁶, γ = 1°, ε = 0.1), a 0.03 footprint",
-            material: || beckmann(0.1),
-            uv: [0.3, 0.6],
-            duv_dx: [3e-2, 0.0],
-            duv_dy: [0.0, 3e-2],
-            wi,
-            wo,
-        },
+        paper_query,
         Case {
             name: "exact (ε = 0), a large footprint: spatial splits first, leaves at the end",
             material: || GlintParameters {
@@ -200,17 +203,12 @@ fn cases() -> Vec<Case> {
         // as the particles are of the tree: pinned alike.
         Case {
             name: "the lattice alone (the defaults: ε = 0.1, dense = lattice), N = 10¹²",
-            material: || dense_material(1e12, LATTICE),
             ..dense_query
         },
         Case {
             name: "the lattice's band with the tree (the defaults), N = 10⁶, a 0.03 footprint",
             material: || dense_material(1e6, LATTICE),
-            uv: [0.3, 0.6],
-            duv_dx: [3e-2, 0.0],
-            duv_dy: [0.0, 3e-2],
-            wi,
-            wo,
+            ..paper_query
         },
     ]
 }
