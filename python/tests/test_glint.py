@@ -17,7 +17,8 @@ import glint
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
 MATERIALS = [
-    dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_degrees=1.0, seed=7),
+    dict(distribution="beckmann", alpha=0.1, particles=1e9, gamma_degrees=1.0, seed=7,
+         dense_node_scale=2.0),
     dict(distribution="ggx", alpha=0.05, alpha_y=0.3, particles=2e7, gamma_degrees=3.0,
          epsilon=0.0, seed=3, multinomial="normal"),
     dict(distribution="beckmann", alpha=0.2, particles=1e6, gamma_degrees=2.0,

@@ -17,8 +17,8 @@ use glint::{
     glint_pdf, glint_pdf_at, glint_sample, glint_scratch_free, glint_scratch_new, glint_version,
 };
 use glint_brdf::{
-    Bxdf, BxdfSample, DVec2, DVec3, DiscreteBrdf, DistributionKind, Footprint, Fresnel,
-    GlintParameters, Microfacet, MultinomialMode, QueryScratch,
+    Bxdf, BxdfSample, DVec2, DVec3, DenseCounts, DiscreteBrdf, DistributionKind, Footprint,
+    Fresnel, GlintParameters, Microfacet, MultinomialMode, QueryScratch,
 };
 
 use GlintStatus::{GLINT_INVALID_ARGUMENT, GLINT_INVALID_PARAMETER, GLINT_NULL_POINTER, GLINT_OK};
@@ -276,6 +276,19 @@ fn cases() -> Vec<Case> {
             wo: (0.2, 3.0),
         },
         Case {
+            // The lattice's band at N = 10⁹, where its tree samples nodes of twice the query's
+            // width (`a_lattice_node_scale_reaches_its_tree` shows the scale changes the count).
+            params: lattice_band_params(2.0),
+            reference: GlintParameters {
+                particles: 1_000_000_000,
+                dense: DenseCounts::Lattice { node_scale: 2.0 },
+                ..GlintParameters::new(beckmann)
+            },
+            footprint: LATTICE_BAND_FOOTPRINT,
+            wi: LATTICE_BAND_WI,
+            wo: LATTICE_BAND_WO,
+        },
+        Case {
             // A query far from the lobe on a tiny footprint: skipped as negligible.
             params: GlintMaterialParams {
                 negligible_count: 1e-3,
@@ -294,6 +307,42 @@ fn cases() -> Vec<Case> {
             wo: (0.2, 0.0),
         },
     ]
+}
+
+/// A query of the lattice's band at N = 10⁹ near the highlight (λ = 4.5: the tree's count and
+/// the lattice's blended).
+const LATTICE_BAND_FOOTPRINT: GlintFootprint = GlintFootprint {
+    uv: [0.41, 0.27],
+    duv_dx: [8.4e-4, 1.4e-4],
+    duv_dy: [-7e-5, 6.3e-4],
+};
+const LATTICE_BAND_WI: (f64, f64) = (0.5, 0.2);
+const LATTICE_BAND_WO: (f64, f64) = (0.47, 0.2 + std::f64::consts::PI);
+
+/// The defaults at N = 10⁹ under the lattice, its tree sampling nodes of `node_scale` widths.
+fn lattice_band_params(node_scale: f64) -> GlintMaterialParams {
+    GlintMaterialParams {
+        particles: 1e9,
+        dense: GlintDense::GLINT_DENSE_LATTICE as u32,
+        dense_node_scale: node_scale,
+        ..default_params()
+    }
+}
+
+/// `dense_node_scale` reaches the tree that answers the lattice's band: the band case of
+/// `cases()` changes its count with the scale, so its bit-for-bit check covers the field.
+#[test]
+fn a_lattice_node_scale_reaches_its_tree() {
+    let count = |node_scale: f64| {
+        let handles = Handles::new(&lattice_band_params(node_scale));
+        let (wi, wo) = (
+            direction(LATTICE_BAND_WI.0, LATTICE_BAND_WI.1),
+            direction(LATTICE_BAND_WO.0, LATTICE_BAND_WO.1),
+        );
+        handles.eval(&LATTICE_BAND_FOOTPRINT, wi, wo).count
+    };
+    let (one, two) = (count(1.0), count(2.0));
+    assert!(one > 0.0 && two > 0.0 && one != two, "{one} and {two}");
 }
 
 #[test]
@@ -416,7 +465,7 @@ fn answers_are_glint_brdf_answers_bit_for_bit() {
         skipped, 1,
         "the negligible case is skipped, the others traversed"
     );
-    assert!(drawn >= 20, "only {drawn} of 24 draws gave a sample");
+    assert!(drawn >= 25, "only {drawn} of 30 draws gave a sample");
 }
 
 #[test]
