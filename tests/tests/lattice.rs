@@ -107,6 +107,44 @@ fn lattice_counts_are_deterministic_and_continuous() {
     assert_deterministic_and_continuous(&tree(1e13, LATTICE));
 }
 
+/// Slope squares remembered across queries are the tree's own: two materials whose queries
+/// meet the same squares, queried in turn with one scratch, answer as each does with a fresh
+/// scratch per query, bit for bit.
+#[test]
+fn lattice_answers_do_not_depend_on_what_the_scratch_remembers() {
+    let rougher = {
+        let config = CountTreeConfig {
+            particles: 1e12 as u64,
+            seed: 77,
+            epsilon: 0.0,
+            dense: LATTICE,
+            ..CountTreeConfig::default()
+        };
+        CountTree::new(config, beckmann_density(0.11, 0.11)).expect("valid configuration")
+    };
+    let trees = [tree(1e12, LATTICE), rougher];
+    let mut rng = SplitMix64::new(99);
+    let workload: Vec<_> = (0..200)
+        .map(|_| highlight_query(0.1, 1f64.to_radians(), SIDE, &mut rng))
+        .collect();
+    let mut shared = QueryScratch::new();
+    let mut differ = 0;
+    for (footprint, conic) in &workload {
+        let [a, b] = trees
+            .each_ref()
+            .map(|tree| tree.query(footprint, conic, &mut shared));
+        let [fresh_a, fresh_b] = trees
+            .each_ref()
+            .map(|tree| tree.query(footprint, conic, &mut QueryScratch::new()));
+        assert_eq!((a, b), (fresh_a, fresh_b));
+        differ += usize::from(a.count != b.count);
+    }
+    assert!(
+        differ > 150,
+        "the two materials answer alike on {differ} queries"
+    );
+}
+
 /// Queries expecting few particles, and coloured materials at any N, are the tree's: the
 /// lattice mode answers them as `Sampled` with its node scale does, bit for bit.
 #[test]

@@ -77,11 +77,13 @@
 //! - **Higher moments** of cells with X_c > M are the sample's, coarser by √(X_c/M).
 
 mod slope_ellipse;
+mod square_memo;
 mod tilt;
 
 use glam::DVec2;
 use glint_sphere::SphericalConic;
 use slope_ellipse::SlopeEllipse;
+use square_memo::{SquareLaw, SquareMemo};
 use tilt::Tilt;
 
 use super::CountTree;
@@ -182,11 +184,13 @@ pub(crate) struct SpaceCell {
     density: f64,
 }
 
-/// The lattice's working memory, kept in the query scratch.
+/// The lattice's working memory, kept in the query scratch: the query's cells, and the slope
+/// squares queries have met.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LatticeScratch {
     slopes: Vec<SlopeCell>,
     spaces: Vec<SpaceCell>,
+    squares: SquareMemo,
 }
 
 /// What the lattice says of a query.
@@ -252,7 +256,7 @@ impl CountTree {
         // Space first: a density map that varies over a square turns the query to the tree
         // before the slope squares' fractions are paid for.
         let spatial = self.space_cells(footprint, &mut scratch.spaces)?;
-        let directional = self.slope_cells(&ellipse, &mut scratch.slopes)?;
+        let directional = self.slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)?;
         let expected = particles * spatial.mass * directional.in_conic;
         let (count, cells) =
             self.lattice_count(footprint, &ellipse, scratch, &spatial, directional.level);
@@ -267,11 +271,13 @@ impl CountTree {
     /// The slope cells the conic meets: pairs of pairs of fine squares, whose level is the
     /// one with the side nearest √(the ellipse's area) or, if less, the side where the
     /// log-linear model of P22 holds (coarser if that gives more than [`MAX_GRID_CELLS`]).
-    /// The level returned is the fine squares'.
+    /// The level returned is the fine squares'. Each square's probability and log-linear law
+    /// come from `memo` where an earlier query computed them (they depend on the square only).
     fn slope_cells(
         &self,
         ellipse: &SlopeEllipse,
         cells: &mut Vec<SlopeCell>,
+        memo: &mut SquareMemo,
     ) -> Option<DirectionalGrid> {
         // √(area): the side of a square of the ellipse's area (its diameter's 0.89 for a
         // circle), so that an elongated ellipse meets a few squares along its length instead
@@ -336,34 +342,40 @@ impl CountTree {
                 let (mut probability, mut inside_mass) = (0.0, 0.0);
                 let mut probabilities = [0.0; 4];
                 for (k, square) in squares.iter_mut().enumerate() {
+                    let (jx, jy) = (2 * cx + (k & 1) as i64, 2 * cy + (k >> 1) as i64);
                     let square_lo = square_lo(k);
-                    let centre = square_lo + DVec2::splat(0.5 * side);
-                    let at = |dx: f64, dy: f64| {
-                        self.slope_density(centre + side * gauss * DVec2::new(dx, dy))
-                    };
-                    let v = [at(-1.0, -1.0), at(1.0, -1.0), at(-1.0, 1.0), at(1.0, 1.0)];
-                    let mean = 0.25 * v.iter().sum::<f64>();
                     square.lo = square_lo;
-                    if !(mean > 0.0) {
+                    let law = memo.law(self.id, level, [jx, jy], || {
+                        let centre = square_lo + DVec2::splat(0.5 * side);
+                        let at = |dx: f64, dy: f64| {
+                            self.slope_density(centre + side * gauss * DVec2::new(dx, dy))
+                        };
+                        let v = [at(-1.0, -1.0), at(1.0, -1.0), at(-1.0, 1.0), at(1.0, 1.0)];
+                        let mean = 0.25 * v.iter().sum::<f64>();
+                        // The log-linear model P22 ∝ exp(g·(s − centre)), g from the Gauss
+                        // points.
+                        let log = v.map(f64::ln);
+                        let gradient = DVec2::new(
+                            0.5 * ((log[1] + log[3]) - (log[0] + log[2])),
+                            0.5 * ((log[2] + log[3]) - (log[0] + log[1])),
+                        ) / step;
+                        SquareLaw {
+                            positive: mean > 0.0,
+                            probability: mean * side * side,
+                            tilt: gradient.is_finite().then(|| Tilt::new(gradient * side)),
+                        }
+                    });
+                    if !law.positive {
                         continue;
                     }
-                    probabilities[k] = mean * side * side;
+                    probabilities[k] = law.probability;
                     probability += probabilities[k];
                     if !meets[k] {
                         continue;
                     }
-                    // The log-linear model P22 ∝ exp(g·(s − centre)), g from the Gauss points.
-                    let log = v.map(f64::ln);
-                    let gradient = DVec2::new(
-                        0.5 * ((log[1] + log[3]) - (log[0] + log[2])),
-                        0.5 * ((log[2] + log[3]) - (log[0] + log[1])),
-                    ) / step;
                     // A Gauss point where p vanishes (a density of bounded support): the tree
                     // answers rather than lose the square.
-                    if !gradient.is_finite() {
-                        return None;
-                    }
-                    square.tilt = Tilt::new(gradient * side);
+                    square.tilt = law.tilt?;
                     let fraction = if ellipse.holds_square(square_lo, side) {
                         square.place = Place::Inside;
                         1.0
@@ -723,7 +735,11 @@ mod tests {
                 .expect("finite");
                 let ellipse = SlopeEllipse::of(&conic).expect("an ellipse");
                 let grid = tree
-                    .slope_cells(&ellipse, &mut scratch.lattice.slopes)
+                    .slope_cells(
+                        &ellipse,
+                        &mut scratch.lattice.slopes,
+                        &mut scratch.lattice.squares,
+                    )
                     .expect("cells");
                 let space = tree
                     .space_cells(&footprint, &mut scratch.lattice.spaces)
@@ -779,7 +795,7 @@ mod tests {
             let footprint =
                 Footprint::new(uv, DVec2::new(1e-3, 0.0), DVec2::new(0.0, 1e-3)).expect("finite");
             let directional = tree
-                .slope_cells(&ellipse, &mut scratch.slopes)
+                .slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)
                 .expect("cells");
             let spatial = tree
                 .space_cells(&footprint, &mut scratch.spaces)
@@ -853,7 +869,7 @@ mod tests {
         let conic = SphericalConic::new(wi, wo, 6f64.to_radians()).expect("valid");
         let ellipse = SlopeEllipse::of(&conic).expect("an ellipse");
         let grid = tree
-            .slope_cells(&ellipse, &mut scratch.slopes)
+            .slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)
             .expect("cells");
         let side = side_at(grid.level);
         let mut rng = PointStream(99);
@@ -925,7 +941,7 @@ mod tests {
                 let conic = SphericalConic::new(wi, wo, gamma).expect("valid");
                 let ellipse = SlopeEllipse::of(&conic).expect("an ellipse");
                 let grid = tree
-                    .slope_cells(&ellipse, &mut scratch.slopes)
+                    .slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)
                     .expect("cells");
                 let ratio = tree.slope_density(ellipse.center) * ellipse.area / grid.in_conic;
                 let lowest = if theta_h <= 0.1 { 0.99 } else { 0.25 };
