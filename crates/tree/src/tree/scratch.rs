@@ -21,7 +21,8 @@ use crate::node::NodeId;
 /// Reusable working memory of queries: keep one per thread, and queries do not allocate. Its
 /// first query allocates 809 KB of memo tables (answers that recur within a query, and split
 /// probabilities, split counts, coloured nodes' areas and leaves' particle positions and
-/// normals that recur across queries, of any material: one scratch serves them all), and it
+/// normals that recur across queries, of any material: one scratch serves them all), its
+/// first lattice query 45 KB more (the lattice's slope squares, `super::lattice`), and it
 /// keeps the spines of the last four trees queried (`super::spine`: the spatial path from the
 /// root their queries share).
 #[derive(Debug, Default)]
@@ -158,7 +159,7 @@ fn node_slot(tree: u64, id: NodeId, bits: u32) -> usize {
 
 /// The slot of a 64-bit key in a table of 2^`bits` entries (Fibonacci hashing).
 #[inline]
-fn memo_slot(key: u64, bits: u32) -> usize {
+pub(super) fn memo_slot(key: u64, bits: u32) -> usize {
     (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize
 }
 

@@ -3,11 +3,13 @@
 //! only, not on the query: a pixel's samples, and neighbouring pixels, meet the same squares
 //! about the lobe, and each square costs four evaluations of the distribution and four
 //! logarithms. The remembered values are the computed ones, so counts do not depend on what
-//! the memo holds.
+//! the memo holds. A square met for the first time is computed whole (its logarithms and law
+//! too, even where the query's conic does not meet it).
 
 use super::tilt::Tilt;
+use crate::tree::scratch::memo_slot;
 
-/// log₂ of the memo's entries (512, about 37 KB).
+/// log₂ of the memo's entries (512 of 88 bytes, 45 KB).
 const SQUARE_MEMO_BITS: u32 = 9;
 
 /// What a fine slope square holds, whatever the query.
@@ -22,6 +24,7 @@ pub(crate) struct SquareLaw {
     pub(super) tilt: Option<Tilt>,
 }
 
+/// One slot: the square it holds (a tree's id, a level, indices) and the square's law.
 #[derive(Clone, Copy, Debug)]
 struct SquareEntry {
     /// The tree's id; 0 (no tree has it) for an empty slot.
@@ -66,8 +69,7 @@ impl SquareMemo {
             ^ (index[1] as u64)
             ^ (level as u64).rotate_left(32)
             ^ tree.rotate_left(47);
-        let slot = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - SQUARE_MEMO_BITS)) as usize;
-        let entry = &mut self.entries[slot];
+        let entry = &mut self.entries[memo_slot(key, SQUARE_MEMO_BITS)];
         if entry.tree == tree && entry.level == level && entry.index == index {
             return entry.law;
         }
@@ -79,5 +81,72 @@ impl SquareMemo {
             law,
         };
         law
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec2;
+
+    use super::*;
+
+    /// A law that names its square, so that a wrong slot shows.
+    fn law_of(tree: u64, level: i32, index: [i64; 2]) -> SquareLaw {
+        SquareLaw {
+            positive: true,
+            probability: tree as f64 * 1e6
+                + f64::from(level) * 1e3
+                + (index[0] * 31 + index[1]) as f64,
+            tilt: Some(Tilt::new(DVec2::new(index[0] as f64, index[1] as f64))),
+        }
+    }
+
+    /// The memo's size is what its docs say.
+    #[test]
+    fn the_memo_holds_512_entries_of_88_bytes() {
+        assert_eq!(std::mem::size_of::<SquareEntry>(), 88);
+        let mut memo = SquareMemo::default();
+        let _ = memo.law(1, 0, [0, 0], || law_of(1, 0, [0, 0]));
+        assert_eq!(memo.entries.len(), 512);
+    }
+
+    /// Every answer is its own square's, whatever the memo held: the same square of two trees,
+    /// and far more squares than slots (evictions and collisions), each computed once while it
+    /// stays, again once evicted.
+    #[test]
+    fn the_memo_answers_each_square_with_its_own_law() {
+        let mut memo = SquareMemo::default();
+        let mut computed = 0;
+        for round in 0..2 {
+            for tree in [1, 2] {
+                for level in [3, 4] {
+                    for jx in -20..20 {
+                        for jy in -20..20 {
+                            let index = [jx, jy];
+                            let law = memo.law(tree, level, index, || {
+                                computed += 1;
+                                law_of(tree, level, index)
+                            });
+                            let expected = law_of(tree, level, index);
+                            assert_eq!(law.probability, expected.probability, "round {round}");
+                        }
+                    }
+                }
+            }
+        }
+        // 6400 squares a round in 512 slots: most are evicted before the second round.
+        assert!(computed > 6400 + 5000, "{computed}");
+        // A square met again at once is remembered, each tree's its own.
+        let mut computed = 0;
+        for _ in 0..3 {
+            for tree in [1, 2] {
+                let law = memo.law(tree, 7, [5, -5], || {
+                    computed += 1;
+                    law_of(tree, 7, [5, -5])
+                });
+                assert_eq!(law.probability, law_of(tree, 7, [5, -5]).probability);
+            }
+        }
+        assert!(computed <= 2 + 2, "{computed}");
     }
 }
