@@ -112,6 +112,16 @@ def test_eval_sample_pdf_match_json_lines_bit_for_bit(index):
     assert found > 0, "the comparison must include queries that find particles"
 
 
+def test_the_first_materials_node_scale_changes_its_answers():
+    """The first material's ``dense_node_scale=2.0`` reaches the queries the lattice leaves to
+    its tree, so the bit-for-bit comparison above covers the field: at scale 1 some of the
+    same 120 queries count differently."""
+    rows = _queries(120, seed=0)[:5]
+    scaled = glint.Material(**MATERIALS[0]).eval(*rows)["count"]
+    unscaled = glint.Material(**{**MATERIALS[0], "dense_node_scale": 1.0}).eval(*rows)["count"]
+    assert np.sum(scaled != unscaled) > 0
+
+
 @pytest.mark.parametrize("index", range(len(MATERIALS)))
 def test_f_hat_and_lean_eval_columns_are_evals_bit_for_bit(index):
     """``f_hat`` (a renderer's call) and ``eval`` without the expected count or the smooth BRDF
