@@ -325,8 +325,10 @@ impl CountTree {
         let (cells_lo, cells_hi) = (lo / 2.0, hi / 2.0);
         for cy in cells_lo.y.floor() as i64..=cells_hi.y.floor() as i64 {
             for cx in cells_lo.x.floor() as i64..=cells_hi.x.floor() as i64 {
+                // Fine square k of the cell: its indices, and its lower corner.
+                let square_index = |k: usize| [2 * cx + (k & 1) as i64, 2 * cy + (k >> 1) as i64];
                 let square_lo = |k: usize| {
-                    let (jx, jy) = (2 * cx + (k & 1) as i64, 2 * cy + (k >> 1) as i64);
+                    let [jx, jy] = square_index(k);
                     DVec2::new(jx as f64, jy as f64) * side
                 };
                 let meets = [0, 1, 2, 3].map(|k| ellipse.meets_square(square_lo(k), side));
@@ -342,10 +344,9 @@ impl CountTree {
                 let (mut probability, mut inside_mass) = (0.0, 0.0);
                 let mut probabilities = [0.0; 4];
                 for (k, square) in squares.iter_mut().enumerate() {
-                    let (jx, jy) = (2 * cx + (k & 1) as i64, 2 * cy + (k >> 1) as i64);
                     let square_lo = square_lo(k);
                     square.lo = square_lo;
-                    let law = memo.law(self.id, level, [jx, jy], || {
+                    let law = memo.law(self.id, level, square_index(k), || {
                         let centre = square_lo + DVec2::splat(0.5 * side);
                         let at = |dx: f64, dy: f64| {
                             self.slope_density(centre + side * gauss * DVec2::new(dx, dy))
