@@ -7,7 +7,9 @@ use std::sync::Arc;
 use glint_benches::{TABLE1, production_density_values, table1_mapped_workload, table1_workload};
 use glint_tree::sampling::{MultinomialMode, multinomial4, multinomial4_equal_by_bits};
 use glint_tree::tea::{DEFAULT_ROUNDS, TeaRng, encrypt, encrypt_x4};
-use glint_tree::{DensityMap, Footprint, MapFilter, MultinomialMode as Mode, QueryScratch};
+use glint_tree::{
+    DensityMap, Footprint, LevelTexels, MapFilter, MultinomialMode as Mode, QueryScratch,
+};
 use std::hint::black_box;
 
 const POOL: usize = 1024;
@@ -49,27 +51,47 @@ fn tree(c: &mut Criterion) {
     group.bench_function("density_map_build_1024_level", |b| {
         b.iter(|| DensityMap::new(side, side, black_box(&values)).expect("a valid map"))
     });
-    for (side, filter, level) in [
-        (1024, MapFilter::Nearest, None),
-        (1024, MapFilter::Bilinear, None),
-        (8192, MapFilter::Nearest, None),
-        (1024, MapFilter::Nearest, Some(0.0)),
-        (1024, MapFilter::Nearest, Some(1e-9)),
+    // A level of a roughness map whose α changes at every texel: the production map times
+    // each texel's weight on the level (0 on three texels in four, else uniform), stored as
+    // its own map (whole: every tile holds a non-zero value) and blocked over a family of
+    // texels (`LevelTexels`), the same values: the two queries' ratio is the blocked tables'
+    // cost, as `_level_blocked` against `_level` is over the gradient's level.
+    let noise_values = |side: usize| {
+        let mut rng = glint_tests::SplitMix64::new(7);
+        let mut values = production_density_values(side);
+        for value in &mut values {
+            let [keep, weight] = rng.uniforms::<2>();
+            *value *= if keep < 0.25 { weight } else { 0.0 };
+        }
+        values
+    };
+    let blocked = |side: usize, values: &[f64]| {
+        let family = LevelTexels::new(side, side, 1, |k| (0, [values[k], 0.0])).expect("valid");
+        DensityMap::roughness_level(&Arc::new(family), 0).expect("not empty")
+    };
+    for (side, filter, level, suffix) in [
+        (1024, MapFilter::Nearest, None, ""),
+        (1024, MapFilter::Bilinear, None, "_bilinear"),
+        (8192, MapFilter::Nearest, None, ""),
+        (1024, MapFilter::Nearest, Some(0.0), "_level"),
+        (1024, MapFilter::Nearest, Some(1e-9), "_level_whole"),
+        (1024, MapFilter::Nearest, Some(0.0), "_level_blocked"),
+        (1024, MapFilter::Nearest, Some(-1.0), "_noise_level"),
+        (1024, MapFilter::Nearest, Some(-1.0), "_noise_level_blocked"),
     ] {
         let values = match level {
+            Some(-1.0) => noise_values(side),
             Some(floor) => level_values(side, floor),
             None => production_density_values(side),
         };
-        let map = DensityMap::with_filter(side, side, &values, filter).expect("valid");
+        let map = if suffix.ends_with("_blocked") {
+            blocked(side, &values)
+        } else {
+            DensityMap::with_filter(side, side, &values, filter).expect("valid")
+        };
         let (tree, queries) = table1_mapped_workload(&TABLE1[0], POOL, 1, Arc::new(map));
         let mut scratch = QueryScratch::new();
         let mut i = 0;
-        let suffix = match (filter, level) {
-            (MapFilter::Bilinear, _) => "_bilinear",
-            (MapFilter::Nearest, None) => "",
-            (MapFilter::Nearest, Some(0.0)) => "_level",
-            (MapFilter::Nearest, Some(_)) => "_level_whole",
-        };
         group.bench_function(
             format!("query_{}_map_{side}{suffix}", TABLE1[0].name),
             |b| {

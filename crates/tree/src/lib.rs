@@ -49,7 +49,7 @@ pub mod sampling;
 pub mod tea;
 mod tree;
 
-pub use density_map::{DensityMap, DensityMapError, MapFilter, MapOccupancy};
+pub use density_map::{DensityMap, DensityMapError, LevelTexels, MapFilter, MapOccupancy};
 pub use error::TreeError;
 pub use footprint::{BoxOverlap, Footprint};
 pub use ndf::{DirectionalCell, NdfQuadrature, NormalDensity, QuadratureTolerance};

@@ -35,11 +35,19 @@
 //! are stored for the occupied tiles (a block of an empty tile has maximum 0); coarser levels
 //! are whole (at most 1/T² of an entry a texel).
 //!
+//! A roughness level may instead keep its tables over blocks of 8 × 8 texels, reading its
+//! texels from a family it shares with the other levels ([`PrefixTable::Blocked`],
+//! `blocked.rs`); a material chooses that for all its levels at once.
+//!
 //! A map is tiled where that saves at least a third of its bytes ([`Layout::choose`]); both
 //! layouts' bytes are functions of the map's size and of which tiles hold a non-zero value
 //! ([`MapOccupancy`]), so a material can count a map's bytes before building it.
 
 use std::ops::{Add, Sub};
+use std::sync::Arc;
+
+use super::blocked::{BlockedPrefix, block_maxima};
+use super::level_texels::{BLOCK_SHIFT, LevelTexels};
 
 /// log₂ of a tile's side in texels.
 const TILE_SHIFT: u32 = 6;
@@ -59,14 +67,28 @@ pub(super) trait Entry:
 {
     /// Its size in bytes.
     const BYTES: usize;
+
+    /// The entry of texel (i, j) of a family's `level` (j from v = 0): a summed-area table of
+    /// values (`u64`) holds its q, one of value changes (`u32`) its g.
+    fn of_texel(texels: &LevelTexels, level: usize, i: usize, j: usize) -> Self;
 }
 
 impl Entry for u64 {
     const BYTES: usize = 8;
+
+    #[inline]
+    fn of_texel(texels: &LevelTexels, level: usize, i: usize, j: usize) -> Self {
+        texels.fixed(level, i, j)
+    }
 }
 
 impl Entry for u32 {
     const BYTES: usize = 4;
+
+    #[inline]
+    fn of_texel(texels: &LevelTexels, level: usize, i: usize, j: usize) -> Self {
+        texels.changes(level, i, j)
+    }
 }
 
 /// How many tiles a table of corners [0, n] spans along an axis of n texels: the corner n
@@ -269,6 +291,8 @@ pub(super) enum PrefixTable<T> {
     Whole { stride: usize, values: Vec<T> },
     /// The decomposition of the module docs.
     Tiled(Box<TiledPrefix<T>>),
+    /// Over whole blocks, the texels read from a family of levels (`blocked.rs`).
+    Blocked(Box<BlockedPrefix<T>>),
 }
 
 /// The tiled layout of a summed-area table (see the module docs).
@@ -329,6 +353,7 @@ impl<T: Entry> PrefixTable<T> {
                     }
                 }
             }
+            Self::Blocked(table) => table.rect((0, i), (0, j)),
         }
     }
 
@@ -361,13 +386,17 @@ impl<T: Entry> PrefixTable<T> {
                 }
             }
             Self::Tiled(_) => self.at(i1, j1) + self.at(i0, j0) - self.at(i1, j0) - self.at(i0, j1),
+            Self::Blocked(table) => table.rect((i0, i1), (j0, j1)),
         }
     }
 
     /// The entry of texel (i, j): S's second difference there.
     #[inline]
     pub(super) fn cell(&self, i: usize, j: usize) -> T {
-        self.rect((i, i + 1), (j, j + 1))
+        match self {
+            Self::Blocked(table) => table.cell(i, j),
+            _ => self.rect((i, i + 1), (j, j + 1)),
+        }
     }
 
     /// The heap memory it holds, in bytes.
@@ -382,6 +411,7 @@ impl<T: Entry> PrefixTable<T> {
                         + table.within.len())
                     + 4 * table.directory.len()
             }
+            Self::Blocked(table) => table.heap_bytes(),
         }
     }
 }
@@ -439,6 +469,7 @@ impl<T: Entry> PrefixBuilder<T> {
                 return;
             }
             PrefixTable::Tiled(table) => table,
+            PrefixTable::Blocked(_) => unreachable!("a blocked table is built whole at once"),
         };
         let width = row.len() - 1;
         // The row of L entries this row gives to the tiles of row `y`, `local` rows above
@@ -493,6 +524,9 @@ impl<T: Entry> PrefixBuilder<T> {
 /// occupied tiles only.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct MaxPyramid {
+    /// L of its first level's blocks, 2^L × 2^L texels ([`FIRST_MAX_LEVEL`], or
+    /// [`BLOCK_SHIFT`] for a blocked level's): finer blocks are read from the texels.
+    first_level: usize,
     levels: Vec<MaxLevel>,
     /// Under the tiled layout: each tile's place among the occupied ones ([`EMPTY`] for the
     /// others), and the tiles per row.
@@ -511,14 +545,66 @@ struct MaxLevel {
 impl MaxPyramid {
     /// The block grids' sizes, finest first, for a `width` × `height` map.
     pub(super) fn sizes(width: usize, height: usize) -> Vec<(usize, usize)> {
+        Self::sizes_from(FIRST_MAX_LEVEL, width, height)
+    }
+
+    /// The block grids' sizes, from blocks of 2^`first_level` texels.
+    fn sizes_from(first_level: usize, width: usize, height: usize) -> Vec<(usize, usize)> {
         let first = (
-            width.div_ceil(1 << FIRST_MAX_LEVEL),
-            height.div_ceil(1 << FIRST_MAX_LEVEL),
+            width.div_ceil(1 << first_level),
+            height.div_ceil(1 << first_level),
         );
         std::iter::successors(Some(first), |&(w, h)| {
             (w > 1 || h > 1).then(|| (w.div_ceil(2), h.div_ceil(2)))
         })
         .collect()
+    }
+
+    /// Every level whole, from the first one's `first_level` (a grid of `sizes[0]`): each
+    /// level's blocks the maxima of four of the level below.
+    fn grids(first_level: Vec<u64>, sizes: &[(usize, usize)]) -> Vec<(usize, Vec<u64>)> {
+        let mut grids: Vec<(usize, Vec<u64>)> = vec![(sizes[0].0, first_level)];
+        for &(next_w, next_h) in &sizes[1..] {
+            let mut maxima = vec![0u64; next_w * next_h];
+            let (below_w, below) = grids.last().expect("the first level");
+            for (k, &value) in below.iter().enumerate() {
+                let (i, j) = (k % below_w, k / below_w);
+                let block = &mut maxima[(j / 2) * next_w + i / 2];
+                *block = (*block).max(value);
+            }
+            grids.push((next_w, maxima));
+        }
+        grids
+    }
+
+    /// The pyramid of a blocked level (`blocked.rs`), whole, from blocks of 2^[`BLOCK_SHIFT`].
+    fn blocked(texels: &LevelTexels, level: usize) -> Self {
+        let (width, height) = texels.size();
+        let first_level = BLOCK_SHIFT as usize;
+        let sizes = Self::sizes_from(first_level, width, height);
+        let levels = Self::grids(block_maxima(texels, level), &sizes)
+            .into_iter()
+            .map(|(width, maxima)| MaxLevel { width, maxima })
+            .collect();
+        Self {
+            first_level,
+            levels,
+            tiles: None,
+        }
+    }
+
+    /// The bytes a blocked level's pyramid holds.
+    fn blocked_bytes(width: usize, height: usize) -> usize {
+        let blocks: usize = Self::sizes_from(BLOCK_SHIFT as usize, width, height)
+            .iter()
+            .map(|(w, h)| w * h)
+            .sum();
+        u64::BYTES * blocks
+    }
+
+    /// L of the first level's blocks (2^L × 2^L texels).
+    pub(super) fn first_level(&self) -> usize {
+        self.first_level
     }
 
     /// The pyramid of a `width` × `height` map whose first level's maxima (blocks of
@@ -531,18 +617,7 @@ impl MaxPyramid {
         occupancy: &MapOccupancy,
     ) -> Self {
         // Every level whole first, each from the one below.
-        let sizes = Self::sizes(width, height);
-        let mut grids: Vec<(usize, Vec<u64>)> = vec![(sizes[0].0, first_level)];
-        for &(next_w, next_h) in &sizes[1..] {
-            let mut maxima = vec![0u64; next_w * next_h];
-            let (below_w, below) = grids.last().expect("the first level");
-            for (k, &value) in below.iter().enumerate() {
-                let (i, j) = (k % below_w, k / below_w);
-                let block = &mut maxima[(j / 2) * next_w + i / 2];
-                *block = (*block).max(value);
-            }
-            grids.push((next_w, maxima));
-        }
+        let grids = Self::grids(first_level, &Self::sizes(width, height));
         let tiles =
             (layout == Layout::Tiled).then(|| (places(&occupancy.occupied), occupancy.tiles_x));
         let levels = grids
@@ -558,7 +633,11 @@ impl MaxPyramid {
                 },
             )
             .collect();
-        Self { levels, tiles }
+        Self {
+            first_level: FIRST_MAX_LEVEL,
+            levels,
+            tiles,
+        }
     }
 
     /// The k-th level's `maxima` (a `width` × `height` grid), regrouped by occupied tile.
@@ -687,6 +766,22 @@ impl Tables {
             changes: changes.finish(),
             maxima: MaxPyramid::new(first_level, width, height, layout, occupancy),
         }
+    }
+
+    /// The tables of `level` of the family `texels`, blocked (`blocked.rs`).
+    pub(super) fn blocked(texels: &Arc<LevelTexels>, level: usize) -> Self {
+        Self {
+            sums: PrefixTable::Blocked(Box::new(BlockedPrefix::new(texels, level))),
+            changes: PrefixTable::Blocked(Box::new(BlockedPrefix::new(texels, level))),
+            maxima: MaxPyramid::blocked(texels, level),
+        }
+    }
+
+    /// The bytes a blocked level's tables hold (its family's texels not counted).
+    pub(super) fn blocked_bytes(width: usize, height: usize) -> usize {
+        BlockedPrefix::<u64>::bytes(width, height)
+            + BlockedPrefix::<u32>::bytes(width, height)
+            + MaxPyramid::blocked_bytes(width, height)
     }
 
     /// The heap memory they hold, in bytes.

@@ -203,7 +203,7 @@ impl CountTree {
     /// The positions of a leaf's particles `first`, …, `first + particles − 1` (at most
     /// [`LeafDraws::CAPACITY`]) under a density map that varies over its box: draw 0 of each
     /// particle's stream, the two uniform numbers that place it uniformly without a map,
-    /// through the inverse of the map's distribution over the box ([`DensityMap::place`]).
+    /// through the inverse of the map's distribution over the box ([`DensityMap::place_each`]).
     fn positions_by_map(
         &self,
         map: &DensityMap,
@@ -212,7 +212,7 @@ impl CountTree {
         particles: usize,
     ) -> [DVec2; LeafDraws::CAPACITY] {
         let key = node.id.key(self.config.seed);
-        let mut positions = [DVec2::ZERO; LeafDraws::CAPACITY];
+        let mut uniforms = [[0.0; 2]; LeafDraws::CAPACITY];
         for start in (0..particles).step_by(4) {
             let purposes = std::array::from_fn(|k| {
                 let i = (start + k).min(particles - 1);
@@ -220,9 +220,16 @@ impl CountTree {
             });
             let draws = draws_x4(key, purposes, 0, self.config.tea_rounds);
             for (k, draw) in draws.into_iter().enumerate().take(particles - start) {
-                positions[start + k] = map.place(node.box_min, node.box_size(), unit_pair(draw));
+                uniforms[start + k] = unit_pair(draw);
             }
         }
+        let mut positions = [DVec2::ZERO; LeafDraws::CAPACITY];
+        map.place_each(
+            node.box_min,
+            node.box_size(),
+            &uniforms[..particles],
+            &mut positions[..particles],
+        );
         positions
     }
 
