@@ -9,7 +9,8 @@
 //! The maps: a smooth gradient of α (0.02 to 0.4, log-linear across the map, interpolated
 //! levels), the same with a grain of ±15% that changes at every texel, a painted map of three
 //! values (a disc and stripes; exact levels), and α that cycles through 97 values from 0.01 to
-//! 0.31 at every texel (the worst case: every level meets every tile).
+//! 0.31 at every texel (the worst case: every level meets every tile, so the levels share one
+//! family of texels, marked "shared").
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -97,8 +98,9 @@ fn main() {
             let material = DiscreteBrdf::new(parameters).expect("a material within budget");
             let seconds = start.elapsed().as_secs_f64();
             assert_eq!(material.map_bytes(), bytes.total());
+            let shared = if bytes.shared_levels { ", shared" } else { "" };
             println!(
-                "| {name} | {levels} | {} | {:.1} | {:.1} | {:.0} |",
+                "| {name} | {levels} | {}{shared} | {:.1} | {:.1} | {:.0} |",
                 bytes.level_maps,
                 bytes.levels as f64 / texels as f64,
                 bytes.level_maps as f64 * whole / texels as f64,

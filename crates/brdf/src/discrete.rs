@@ -371,11 +371,12 @@ impl DiscreteBrdf {
         }
         // The levels' weights are made once: the budget counts their maps, then they are built.
         let level_weights = MapBytes::level_weights(&parameters)?;
-        MapBytes::with_level_weights(&parameters, level_weights.as_ref()).check()?;
+        let bytes = MapBytes::with_level_weights(&parameters, level_weights.as_ref()).check()?;
         let levels = roughness_levels(
             parameters.density_map.as_ref(),
             level_weights,
             parameters.roughness_levels,
+            bytes.shared_levels,
         )?;
         let layers = levels
             .into_iter()
@@ -459,16 +460,24 @@ impl DiscreteBrdf {
     #[must_use]
     pub fn map_bytes(&self) -> u64 {
         let p = &self.parameters;
-        let given = p.density_map.as_ref().map_or(0, |m| m.heap_bytes())
+        let given = p
+            .density_map
+            .as_ref()
+            .map_or(0, |m| m.heap_bytes_with_texels())
             + p.alpha_map.as_ref().map_or(0, |m| m.heap_bytes())
             + p.tint_map.as_ref().map_or(0, |m| m.heap_bytes());
-        // Without a roughness map the one level's density map is the given one.
+        // Without a roughness map the one level's density map is the given one. Levels that
+        // share a family of texels hold it once.
         let levels: usize = if p.alpha_map.is_some() {
-            self.layers
-                .iter()
-                .filter_map(|layer| layer.tree.density_map())
-                .map(|map| map.heap_bytes())
-                .sum()
+            let maps = || {
+                self.layers
+                    .iter()
+                    .filter_map(|layer| layer.tree.density_map())
+            };
+            let family = maps()
+                .find_map(|map| map.level_texels())
+                .map_or(0, |texels| texels.heap_bytes());
+            family + maps().map(|map| map.heap_bytes()).sum::<usize>()
         } else {
             0
         };

@@ -7,8 +7,10 @@
 //! texel, and less where it is 0 over whole tiles of 64 × 64 texels, which it leaves out. A
 //! roughness level's map d·w_k is 0 wherever α is not near the level's, so K levels hold
 //! about two maps' worth where α varies smoothly or in regions (8 levels of a smooth 4096²
-//! gradient: 2.5 maps), and up to K maps' worth where it changes at every texel (a 4096² map
-//! of 97 values at 64 levels: 56 non-empty levels, 11.9 GB). [`DiscreteBrdf::new`] counts what
+//! gradient: 2.5 maps). Where it changes at every texel they would hold up to K maps' worth
+//! (a 4096² map of 97 values at 64 levels: 56 non-empty levels, 11.9 GB), and a nearest
+//! map's levels share one family of texels instead (9 bytes a texel, and 0.36 a level:
+//! 0.49 GB for that map; `LevelBytes`, in `surface_maps.rs`, chooses). [`DiscreteBrdf::new`] counts what
 //! the material will hold from one pass over the maps' texels (which tiles each derived map
 //! would occupy, [`DensityMap::bytes_for_occupancy`]) and refuses, with
 //! [`BrdfError::MapsTooLarge`], a material over [`MAX_MAP_BYTES`]: every interface (scene
@@ -21,13 +23,15 @@ use glint_tree::DensityMap;
 
 use crate::discrete::GlintParameters;
 use crate::error::BrdfError;
-use crate::surface_maps::{LevelWeights, WeightedTint};
+use crate::surface_maps::{LevelBytes, LevelWeights, WeightedTint};
 
 /// The most memory a material's maps may hold, in bytes (4 GiB, 4.29 GB): the maps it is given
 /// and the ones it builds from them. An 8192² density map takes at most 0.85 GB; a 4096²
-/// roughness map whose α changes at every texel fits at up to 19 non-empty levels (4.17 GB),
-/// 18 with a density map of its size; one whose α varies smoothly or in regions at any K (its
-/// levels hold a few density maps' worth: `roughness_levels_hold_about_two_maps_not_k`).
+/// roughness map whose α changes at every texel fits at any K filtered nearest (its levels
+/// share their texels: 0.49 GB at 64 levels), and bilinear at up to 19 non-empty levels
+/// (4.17 GB), 18 with a density map of its size; one whose α varies smoothly or in regions at
+/// any K (its levels hold a few density maps' worth:
+/// `roughness_levels_hold_about_two_maps_not_k`).
 pub const MAX_MAP_BYTES: u64 = 4 << 30;
 
 /// What a material's maps hold, in bytes, counted before they are built.
@@ -40,6 +44,9 @@ pub struct MapBytes {
     pub levels: u64,
     /// How many roughness-level maps that is (0 without a roughness map).
     pub level_maps: usize,
+    /// Whether those maps share one family of texels (blocked tables, where α changes within
+    /// most tiles) rather than each holding its own tables.
+    pub shared_levels: bool,
     /// The roughness map's width and height, and its `roughness_levels`, when it has one.
     pub roughness: Option<(usize, usize, usize)>,
     /// The density-weighted tint's three maps it builds.
@@ -88,7 +95,7 @@ impl MapBytes {
         let mut bytes = Self::default();
         let density = parameters.density_map.as_deref();
         if let Some(density) = density {
-            bytes.given += density.heap_bytes() as u64;
+            bytes.given += density.heap_bytes_with_texels() as u64;
         }
         if let Some(tint) = &parameters.tint_map {
             bytes.given += tint.heap_bytes() as u64;
@@ -105,10 +112,10 @@ impl MapBytes {
             let (width, height) = alpha.size();
             bytes.given += alpha.heap_bytes() as u64;
             bytes.roughness = Some((width, height, parameters.roughness_levels));
-            for occupancy in weights.occupancies().iter().filter(|o| !o.is_empty()) {
-                bytes.level_maps += 1;
-                bytes.levels += DensityMap::bytes_for_occupancy(occupancy) as u64;
-            }
+            let levels = LevelBytes::of(weights);
+            bytes.level_maps = levels.maps;
+            bytes.levels = levels.bytes();
+            bytes.shared_levels = levels.shared();
         }
         bytes
     }
@@ -134,6 +141,8 @@ impl MapBytes {
 #[cfg(test)]
 mod tests {
     use std::sync::Arc;
+
+    use glint_tree::MapFilter;
 
     use super::*;
     use crate::surface_maps::{RoughnessMap, TintMap};
@@ -169,6 +178,22 @@ mod tests {
             let built = DiscreteBrdf::new(material).unwrap();
             assert_eq!(built.map_bytes(), counted.total(), "{levels} levels");
         }
+        // α changing at every texel over eight levels: the levels share one family of texels,
+        // counted once.
+        let (width, height) = (300, 200);
+        let noisy: Vec<f64> = (0..width * height)
+            .map(|k| 0.02 * 20f64.powf(((k * 7_919) % 1_009) as f64 / 1_008.0))
+            .collect();
+        let material = GlintParameters {
+            alpha_map: Some(Arc::new(RoughnessMap::new(width, height, &noisy).unwrap())),
+            roughness_levels: 8,
+            ..parameters()
+        };
+        let counted = MapBytes::of(&material).unwrap();
+        assert!(counted.shared_levels);
+        assert_eq!(counted.level_maps, 8);
+        let built = DiscreteBrdf::new(material).unwrap();
+        assert_eq!(built.map_bytes(), counted.total());
     }
 
     /// A roughness map's K levels hold about what two density maps hold, not K: each texel
@@ -224,21 +249,26 @@ mod tests {
     }
 
     /// A roughness map whose levels would pass the budget is refused before anything is
-    /// built, naming the bytes, the levels and the map's size; fewer levels pass.
+    /// built, naming the bytes, the levels and the map's size; fewer levels pass. The same
+    /// map filtered nearest fits: its levels share one family of texels.
     #[test]
     fn a_material_over_the_budget_is_refused_before_building() {
-        // 4096² texels of 97 values: each level map needs 213 MB, 56 of them 11.9 GB.
+        // 4096² texels of 97 values, bilinear: each level map needs 213 MB, 56 of them 11.9 GB.
         let (width, height) = (4096, 4096);
         let alphas: Vec<f64> = (0..width * height)
             .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
             .collect();
-        let alpha = Arc::new(RoughnessMap::new(width, height, &alphas).unwrap());
+        let nearest = Arc::new(RoughnessMap::new(width, height, &alphas).unwrap());
+        let alpha = Arc::new((*nearest).clone().with_filter(MapFilter::Bilinear));
         let material = |levels| GlintParameters {
             alpha_map: Some(Arc::clone(&alpha)),
             roughness_levels: levels,
             ..parameters()
         };
-        let error = DiscreteBrdf::new(material(64)).unwrap_err();
+        let error = match DiscreteBrdf::new(material(64)) {
+            Err(error) => error,
+            Ok(_) => panic!("a material of 11.9 GB was built"),
+        };
         let BrdfError::MapsTooLarge { bytes } = error else {
             panic!("{error}");
         };
@@ -246,8 +276,24 @@ mod tests {
         // nothing and count nothing; every other one occupies every tile (the values change
         // at every texel), so its tables are whole.
         assert_eq!(bytes.level_maps, 56);
+        assert!(!bytes.shared_levels);
         let whole = DensityMap::bytes_for(width, height) as u64;
         assert_eq!(bytes.levels, 56 * whole);
+        // Nearest, the 56 levels share 9 bytes a texel and hold 0.36 bytes a texel each.
+        let shared = MapBytes::of(&GlintParameters {
+            alpha_map: Some(Arc::clone(&nearest)),
+            roughness_levels: 64,
+            ..parameters()
+        })
+        .unwrap();
+        assert!(shared.shared_levels);
+        let texels = (width * height) as u64;
+        assert_eq!(
+            shared.levels,
+            9 * texels + 56 * DensityMap::roughness_level_bytes(width, height) as u64
+        );
+        assert!(shared.levels < 30 * texels, "{}", shared.levels);
+        assert!(shared.check().is_ok());
         assert!(bytes.total() > 11_000_000_000, "{}", bytes.total());
         let message = error.to_string();
         for part in [
@@ -264,6 +310,7 @@ mod tests {
                 given: 2_600_000_000,
                 levels: 900_000_000,
                 level_maps: 2,
+                shared_levels: false,
                 roughness: Some((4096, 4096, 2)),
                 weighted_tint: 1_300_000_000,
             },

@@ -31,7 +31,7 @@
 use std::sync::Arc;
 
 use glam::{DVec2, DVec3};
-use glint_tree::{DensityMap, DensityMapError, Footprint, MapFilter, MapOccupancy};
+use glint_tree::{DensityMap, DensityMapError, Footprint, LevelTexels, MapFilter, MapOccupancy};
 
 use crate::error::BrdfError;
 
@@ -40,6 +40,9 @@ const ALPHA_RANGE: std::ops::RangeInclusive<f64> = 1e-4..=1.0;
 
 /// The most roughness levels a material may have.
 pub const MAX_ROUGHNESS_LEVELS: usize = 64;
+
+// A material's levels may share one family of texels, which holds at most as many.
+const _: () = assert!(MAX_ROUGHNESS_LEVELS <= glint_tree::density_map::MAX_LEVELS);
 
 /// A map of isotropic roughness α(x) ∈ [10⁻⁴, 1] (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
@@ -483,6 +486,22 @@ impl<'a> LevelWeights<'a> {
             .collect()
     }
 
+    /// Every texel's lower level and its values on that level and the next (the levels'
+    /// values, two at a time): the family a material's levels share where each stored as its
+    /// own map would hold far more ([`LevelBytes::shared`]).
+    ///
+    /// # Errors
+    /// [`BrdfError::DensityMap`] should the family be refused (its size and values are those
+    /// of maps already checked).
+    fn family(&self) -> Result<LevelTexels, BrdfError> {
+        let (width, height) = self.alpha.size();
+        LevelTexels::new(width, height, self.alphas.len(), |k| {
+            let [(lower, w), (_, w_next)] = self.weights(k);
+            (lower, [self.value_of(k, w), self.value_of(k, w_next)])
+        })
+        .map_err(BrdfError::DensityMap)
+    }
+
     /// Which tiles each level's density map would occupy, in one pass over the texels.
     pub(crate) fn occupancies(&self) -> Vec<MapOccupancy> {
         let (width, height) = self.alpha.size();
@@ -498,11 +517,67 @@ impl<'a> LevelWeights<'a> {
     }
 }
 
+/// What a roughness map's levels hold, counted before they are built, in either of the two
+/// ways a material keeps them: each level as its own density map (tiled where it is 0 over
+/// whole tiles), or all of them blocked over one family of texels ([`LevelTexels`]: 9 bytes a
+/// texel, and [`DensityMap::roughness_level_bytes`] a level, about 0.36 bytes a texel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct LevelBytes {
+    /// How many levels hold a non-zero value (the others are not built).
+    pub(crate) maps: usize,
+    /// Their bytes, each its own density map.
+    own: u64,
+    /// Their bytes, blocked over one family (`None` for a bilinear map: a bilinear map reads
+    /// its summed-area table's corners anywhere, which the blocked tables answer only slowly).
+    shared: Option<u64>,
+}
+
+impl LevelBytes {
+    /// The bytes of the levels of `weights`, from one pass over the texels.
+    pub(crate) fn of(weights: &LevelWeights) -> Self {
+        let occupancies = weights.occupancies();
+        let nonempty = || occupancies.iter().filter(|o| !o.is_empty());
+        let (width, height) = weights.alpha.size();
+        let maps = nonempty().count();
+        let own = nonempty()
+            .map(|o| DensityMap::bytes_for_occupancy(o) as u64)
+            .sum();
+        let shared = (weights.alpha.filter() == MapFilter::Nearest).then(|| {
+            (LevelTexels::bytes_for(width, height)
+                + maps * DensityMap::roughness_level_bytes(width, height)) as u64
+        });
+        Self { maps, own, shared }
+    }
+
+    /// Whether the levels share one family of texels: where that holds at most a quarter of
+    /// the bytes of the levels' own maps, as where α changes within most tiles over several
+    /// levels (white noise over 8 levels: 11.8 bytes a texel against 102). A shared level
+    /// reads its texels where a box cuts its 8 × 8 blocks and compares texels to tell whether
+    /// a box under a block is constant, so those questions cost more than under its own map,
+    /// while a leaf's box of up to 64 × 64 texels is read once, so placements cost less.
+    /// Queries on one level's 1024² map took 0.84–1.00× the time of its own map's; a
+    /// glitter_pattern frame (a 256 × 128 map of two α, tiny boxes) 1.065× the instructions
+    /// (docs/performance.md). So where the levels' own tiled maps hold less than 4× the
+    /// family's bytes (α smooth or in regions: about two maps' worth) they are kept.
+    pub(crate) fn shared(&self) -> bool {
+        self.shared.is_some_and(|shared| 4 * shared <= self.own)
+    }
+
+    /// The bytes the levels hold, kept as [`Self::shared`] says.
+    pub(crate) fn bytes(&self) -> u64 {
+        match self.shared {
+            Some(shared) if self.shared() => shared,
+            _ => self.own,
+        }
+    }
+}
+
 /// The roughness levels of a material with density map `density` and the roughness map's
 /// level `weights` (`MapBytes::level_weights`: at most `levels` of them, see the module docs);
 /// levels whose density is 0 everywhere are left out. Without a roughness map, one level: the
 /// material's α and its density map. The levels' density maps are built one at a time (one
-/// map's texels at once besides them).
+/// map's texels at once besides them), or, `shared` ([`LevelBytes::shared`]), blocked over one
+/// family of texels that they all read.
 ///
 /// # Errors
 /// [`BrdfError::MapSizesDiffer`] when both maps are given with different sizes; those of
@@ -511,6 +586,7 @@ pub(crate) fn roughness_levels(
     density: Option<&Arc<DensityMap>>,
     weights: Option<LevelWeights>,
     levels: usize,
+    shared: bool,
 ) -> Result<Vec<RoughnessLevel>, BrdfError> {
     if !(1..=MAX_ROUGHNESS_LEVELS).contains(&levels) {
         return Err(BrdfError::InvalidRoughnessLevels { levels });
@@ -539,10 +615,14 @@ pub(crate) fn roughness_levels(
             alpha: alpha.filter(),
         });
     }
+    let family = shared.then(|| weights.family().map(Arc::new)).transpose()?;
     let mut result = Vec::new();
     for (level, &level_alpha) in weights.alphas.iter().enumerate() {
-        let values = weights.values(level);
-        match DensityMap::with_filter(width, height, &values, alpha.filter()) {
+        let map = match &family {
+            Some(family) => DensityMap::roughness_level(family, level),
+            None => DensityMap::with_filter(width, height, &weights.values(level), alpha.filter()),
+        };
+        match map {
             Ok(map) => result.push(RoughnessLevel {
                 alpha: Some(level_alpha),
                 density: Some(Arc::new(map)),
@@ -555,4 +635,75 @@ pub(crate) fn roughness_levels(
         return Err(BrdfError::DensityMap(DensityMapError::Empty));
     }
     Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Levels that share one family of texels are the levels' own maps: for noisy α over a
+    /// density map with zeros, interpolated (8 and 2 levels) and exact (3 values), every
+    /// level's texels and its answers on random boxes and footprints are bit for bit those of
+    /// the level's map built from its values.
+    #[test]
+    fn shared_levels_are_the_levels_own_maps() {
+        let (width, height) = (67, 45);
+        let texels = width * height;
+        let mut state = 12_345u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let noisy: Vec<f64> = (0..texels).map(|_| 0.02 * 20f64.powf(next())).collect();
+        let three: Vec<f64> = (0..texels).map(|k| [0.05, 0.1, 0.2][k * k % 3]).collect();
+        let density: Vec<f64> = (0..texels)
+            .map(|k| if k % 7 == 0 { 0.0 } else { next() })
+            .collect();
+        let density = Arc::new(DensityMap::new(width, height, &density).unwrap());
+        for (alphas, levels) in [(&noisy, 8), (&noisy, 2), (&three, 8)] {
+            let alpha = RoughnessMap::new(width, height, alphas).unwrap();
+            let build = |shared| {
+                let weights = LevelWeights::new(Some(&density), &alpha, levels).unwrap();
+                roughness_levels(Some(&density), Some(weights), levels, shared).unwrap()
+            };
+            let (own, shared) = (build(false), build(true));
+            assert_eq!(own.len(), shared.len());
+            for (own, shared) in own.iter().zip(&shared) {
+                assert_eq!(own.alpha, shared.alpha);
+                let (own, shared) = (
+                    own.density.as_ref().unwrap(),
+                    shared.density.as_ref().unwrap(),
+                );
+                assert!(own.level_texels().is_none() && shared.level_texels().is_some());
+                assert_eq!(own.texels(), shared.texels());
+                assert_eq!(
+                    (own.mean(), own.uniform_value(), own.max()),
+                    (shared.mean(), shared.uniform_value(), shared.max())
+                );
+                for _ in 0..300 {
+                    let [a, b, c, d] = [next(), next(), next(), next()];
+                    let size = 0.5 * c * c;
+                    let min = DVec2::new(a * (1.0 - size), b * (1.0 - size));
+                    let footprint = Footprint::new(
+                        DVec2::new(a, b),
+                        DVec2::new(size, 0.3 * size * (d - 0.5)),
+                        DVec2::new(0.2 * size * d, 0.8 * size),
+                    )
+                    .unwrap();
+                    let answers = |map: &DensityMap| {
+                        (
+                            map.is_constant_over(min, size),
+                            map.quarter_probabilities(min, size),
+                            map.place(min, size, [c, d]),
+                            map.max_over(&footprint),
+                            map.mass_in(&footprint),
+                        )
+                    };
+                    assert_eq!(answers(own), answers(shared), "box {min} {size}");
+                }
+            }
+        }
+    }
 }

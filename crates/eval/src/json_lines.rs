@@ -273,8 +273,9 @@ mod tests {
         assert_eq!(requests.answer(&line(0)).unwrap(), first);
     }
 
-    /// A material's maps count in the cache's memory: three materials with a 512² roughness
-    /// map at 20 levels (about 110 MB each, 67 MB of it level maps) leave two cached, not 64 (each was counted
+    /// A material's maps count in the cache's memory: three materials with a 512² bilinear
+    /// roughness map at 20 levels (about 110 MB each, 67 MB of it level maps, one per level:
+    /// bilinear levels do not share their texels) leave two cached, not 64 (each was counted
     /// as 2 MB, and the cache grew by the maps' size with every line).
     #[test]
     fn the_material_cache_counts_the_maps() {
@@ -290,7 +291,7 @@ mod tests {
         let alpha_map = format!("[{}]", rows.join(","));
         let line = |seed: usize| {
             format!(
-                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "seed": {seed}, "alpha_map": {alpha_map}, "roughness_levels": 20}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
+                r#"{{"op": "eval", "material": {{"distribution": "beckmann", "alpha": 0.1, "particles": 1e6, "gamma_degrees": 1.0, "seed": {seed}, "alpha_map": {alpha_map}, "map_filter": "bilinear", "roughness_levels": 20}}, "uv": [0.3, 0.4], "duv_dx": [0.01, 0.0], "duv_dy": [0.0, 0.01], "wi": [0.0, 0.0, 1.0], "wo": [0.1, 0.0, 0.99]}}"#
             )
         };
         let mut requests = JsonLines::new();
