@@ -55,7 +55,8 @@ fn tree(c: &mut Criterion) {
     // each texel's weight on the level (0 on three texels in four, else uniform), stored as
     // its own map (whole: every tile holds a non-zero value) and blocked over a family of
     // texels (`LevelTexels`), the same values: the two queries' ratio is the blocked tables'
-    // cost, as `_level_blocked` against `_level` is over the gradient's level.
+    // cost, as `_level_blocked` against `_level` is over the gradient's level; the
+    // `_bilinear` pairs are the same levels reconstructed bilinear.
     let noise_values = |side: usize| {
         let mut rng = glint_tests::SplitMix64::new(7);
         let mut values = production_density_values(side);
@@ -65,9 +66,9 @@ fn tree(c: &mut Criterion) {
         }
         values
     };
-    let blocked = |side: usize, values: &[f64]| {
+    let blocked = |side: usize, values: &[f64], filter| {
         let family = LevelTexels::new(side, side, 1, |k| (0, [values[k], 0.0])).expect("valid");
-        DensityMap::roughness_level(&Arc::new(family), 0).expect("not empty")
+        DensityMap::roughness_level(&Arc::new(family), 0, filter).expect("not empty")
     };
     for (side, filter, level, suffix) in [
         (1024, MapFilter::Nearest, None, ""),
@@ -78,6 +79,25 @@ fn tree(c: &mut Criterion) {
         (1024, MapFilter::Nearest, Some(0.0), "_level_blocked"),
         (1024, MapFilter::Nearest, Some(-1.0), "_noise_level"),
         (1024, MapFilter::Nearest, Some(-1.0), "_noise_level_blocked"),
+        (1024, MapFilter::Bilinear, Some(0.0), "_level_bilinear"),
+        (
+            1024,
+            MapFilter::Bilinear,
+            Some(0.0),
+            "_level_bilinear_blocked",
+        ),
+        (
+            1024,
+            MapFilter::Bilinear,
+            Some(-1.0),
+            "_noise_level_bilinear",
+        ),
+        (
+            1024,
+            MapFilter::Bilinear,
+            Some(-1.0),
+            "_noise_level_bilinear_blocked",
+        ),
     ] {
         let values = match level {
             Some(-1.0) => noise_values(side),
@@ -85,7 +105,7 @@ fn tree(c: &mut Criterion) {
             None => production_density_values(side),
         };
         let map = if suffix.ends_with("_blocked") {
-            blocked(side, &values)
+            blocked(side, &values, filter)
         } else {
             DensityMap::with_filter(side, side, &values, filter).expect("valid")
         };

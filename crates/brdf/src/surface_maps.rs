@@ -619,7 +619,7 @@ pub(crate) fn roughness_levels(
     let mut result = Vec::new();
     for (level, &level_alpha) in weights.alphas.iter().enumerate() {
         let map = match &family {
-            Some(family) => DensityMap::roughness_level(family, level),
+            Some(family) => DensityMap::roughness_level(family, level, alpha.filter()),
             None => DensityMap::with_filter(width, height, &weights.values(level), alpha.filter()),
         };
         match map {

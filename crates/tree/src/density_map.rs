@@ -376,31 +376,36 @@ impl DensityMap {
         })
     }
 
-    /// Level `level` of the family `texels` (a roughness level's map d·w_k, nearest filter),
-    /// its tables over blocks and its texels read from the family (`density_map/blocked.rs`):
-    /// the same fixed-point values, so the same answers bit for bit, as [`DensityMap::new`] of
-    /// the level's values gives, in [`Self::roughness_level_bytes`] (about 0.36 bytes a texel)
-    /// besides the family's 9, where a map stored whole takes 12.7.
+    /// Level `level` of the family `texels` (a roughness level's map d·w_k, reconstructed by
+    /// `filter`), its tables over blocks and its texels read from the family
+    /// (`density_map/blocked.rs`): the same fixed-point values, so the same answers bit for
+    /// bit, as [`DensityMap::with_filter`] of the level's values gives, in
+    /// [`Self::roughness_level_bytes`] (about 0.36 bytes a texel) besides the family's 9, where
+    /// a map stored whole takes 12.7.
     ///
     /// # Errors
     /// [`DensityMapError::Empty`] when the level is 0 at every texel (or not in the family).
     pub fn roughness_level(
         texels: &Arc<LevelTexels>,
         level: usize,
+        filter: MapFilter,
     ) -> Result<Self, DensityMapError> {
-        if level >= texels.levels() || texels.is_empty(level) {
+        if level >= texels.levels() {
             return Err(DensityMapError::Empty);
         }
         let (width, height) = texels.size();
         let tables = Tables::blocked(texels, level);
         let total = tables.sums.at(width, height);
+        if total == 0 {
+            return Err(DensityMapError::Empty);
+        }
         let uniform = (tables.changes.at(width, height) == 0)
             .then(|| texels.fixed(level, 0, 0) as f64 / FIXED_ONE);
         Ok(Self {
             width,
             height,
             tables,
-            filter: MapFilter::Nearest,
+            filter,
             uniform,
             mean: total as f64 / (FIXED_ONE * (width * height) as f64),
         })
@@ -699,7 +704,7 @@ impl DensityMap {
                 (groups, n)
             };
             let ((c, nc), (r, nr)) = (span(&columns), span(&rows));
-            let sums = table.group_sums(&c[..nc], &r[..nr]);
+            let sums: [[u64; 3]; 3] = table.group_sums(&c[..nc], &r[..nr]);
             for (r, (_, _, row_weight)) in rows.groups().enumerate() {
                 for (c, (_, _, column_weight)) in columns.groups().enumerate() {
                     mass += sums[r][c] as f64 * (column_weight * row_weight);
@@ -813,10 +818,7 @@ impl DensityMap {
         positions: &mut [DVec2],
     ) {
         if self.filter == MapFilter::Bilinear {
-            for (u, position) in uniforms.iter().zip(positions) {
-                *position = self.bilinear_place(min, size, *u);
-            }
-            return;
+            return self.bilinear_place_each(min, size, uniforms, positions);
         }
         let columns = TexelSpan::new(min.x, min.x + size, self.width);
         let rows = TexelSpan::new(min.y, min.y + size, self.height);
@@ -962,13 +964,13 @@ impl DensityMap {
 
     /// Σ q over texel row `j` and the columns `columns` (any integers: the map repeats), in
     /// fixed point: one summed-area look-up per run of columns within one repeat.
-    pub(super) fn row_sum(&self, j: usize, columns: std::ops::Range<i64>) -> u64 {
+    fn row_sum(&self, j: usize, columns: std::ops::Range<i64>) -> u64 {
         self.rows_sum((j, j + 1), columns)
     }
 
     /// Σ q over texel rows [j0, j1) (within the map) and the columns `columns` (any
     /// integers), in fixed point: one summed-area look-up per run of columns within one repeat.
-    fn rows_sum(&self, (j0, j1): (usize, usize), columns: std::ops::Range<i64>) -> u64 {
+    fn rows_sum(&self, rows: (usize, usize), columns: std::ops::Range<i64>) -> u64 {
         let width = self.width as i64;
         let mut sum = 0;
         let mut column = columns.start;
@@ -978,7 +980,7 @@ impl DensityMap {
             sum += self
                 .tables
                 .sums
-                .rect((i as usize, (i + run) as usize), (j0, j1));
+                .rect((i as usize, (i + run) as usize), rows);
             column += run;
         }
         sum

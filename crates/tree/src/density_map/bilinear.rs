@@ -16,10 +16,12 @@
 //!   one value.
 //! - **Placement.** Along x the box's marginal is the tent interpolation of the columns'
 //!   weighted sums c_i: linear between column centres, so its cumulative is quadratic there. A
-//!   binary search on the cumulative at the centres (exact integer sums of c and half of the
-//!   centre's own) finds the segment, and the quadratic's root the position. Given x, the
-//!   density along y interpolates the two columns around x linearly, and the same inversion
-//!   places y.
+//!   binary search on the cumulative at the centres (exact integer sums of c from the box's
+//!   first texel, and half of the centre's own) finds the segment, and the quadratic's root
+//!   the position. Given x, the density along y interpolates the two columns around x
+//!   linearly, and the same inversion places y. Every sum lies within the texels whose tents
+//!   meet the box and one more on each side, so a blocked level reads them once
+//!   (`blocked.rs`).
 //! - **Footprints.** ∫_A d over a parallelogram clips it to each cell between four texel
 //!   centres (where d is one bilinear patch) and integrates the patch over the clipped polygon
 //!   from its moments ([`super::polygon`]).
@@ -27,7 +29,8 @@
 use glam::DVec2;
 
 use super::polygon::{clip, columns_met, polygon_moments, whole_columns, within};
-use super::{DensityMap, FIXED_ONE, MAX_INTEGRATED_TEXELS};
+use super::tables::PrefixTable;
+use super::{DensityMap, FIXED_ONE, MAX_INTEGRATED_TEXELS, WholeRuns};
 use crate::footprint::Footprint;
 
 /// ∫ T(s) ds from −∞ to t for the tent T(s) = max(0, 1 − |s|).
@@ -49,7 +52,7 @@ pub(super) fn tent_cumulative(t: f64) -> f64 {
 /// whole tents as one group of weight 1.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct TentSpan {
-    groups: [(i64, i64, f64); 6],
+    groups: [(i64, i64, f64); Self::MAX_GROUPS],
     len: usize,
     /// The first and last texel whose tent meets the interval.
     pub(super) first: i64,
@@ -57,6 +60,11 @@ pub(super) struct TentSpan {
 }
 
 impl TentSpan {
+    /// Room for a span's groups: at most two partly covered texels at each end and the whole
+    /// ones between, or at most five partly covered ones of an interval under three texels
+    /// wide.
+    pub(super) const MAX_GROUPS: usize = 6;
+
     pub(super) fn new(lo: f64, hi: f64, n: usize) -> Self {
         let (a, b) = (lo * n as f64, hi * n as f64);
         // Texel i's tent covers (i − ½, i + 3/2) in texel coordinates.
@@ -68,7 +76,7 @@ impl TentSpan {
             tent_cumulative(b - centre) - tent_cumulative(a - centre)
         };
         let mut span = Self {
-            groups: [(0, 0, 0.0); 6],
+            groups: [(0, 0, 0.0); Self::MAX_GROUPS],
             len: 0,
             first,
             last,
@@ -86,7 +94,7 @@ impl TentSpan {
                 push((i, i + 1, weight(i)));
             }
         } else {
-            // No whole tent: the interval is under two texels wide, and meets at most four.
+            // No whole tent: the interval is under three texels wide, and meets at most five.
             for i in first..=last {
                 push((i, i + 1, weight(i)));
             }
@@ -100,43 +108,49 @@ impl TentSpan {
 }
 
 impl DensityMap {
-    /// Σ q over texel columns [0, c) × rows [0, r) of the map repeated over the plane (the
-    /// summed-area table extended periodically; c and r may be negative), exactly.
-    fn periodic_prefix(&self, c: i64, r: i64) -> i64 {
-        let (w, h) = (self.width as i64, self.height as i64);
-        if (0..=w).contains(&c) && (0..=h).contains(&r) {
-            return self.tables.sums.at(c as usize, r as usize) as i64;
-        }
-        let (qc, c) = (c.div_euclid(w), c.rem_euclid(w) as usize);
-        let (qr, r) = (r.div_euclid(h), r.rem_euclid(h) as usize);
-        let at = |c: usize, r: usize| self.tables.sums.at(c, r) as i64;
-        at(c, r)
-            + qc * at(self.width, r)
-            + qr * at(c, self.height)
-            + qc * qr * at(self.width, self.height)
-    }
-
-    /// Σ q over texel columns [i0, i1) × rows [j0, j1), indices wrapped into the map.
+    /// Σ q over texel columns [i0, i1) × rows [j0, j1), any integers (the map repeats over
+    /// the plane): one rectangle per piece within one repeat.
     fn wrapped_sum(&self, (i0, i1): (i64, i64), (j0, j1): (i64, i64)) -> u64 {
         let (w, h) = (self.width as i64, self.height as i64);
         if 0 <= i0 && i1 <= w && 0 <= j0 && j1 <= h {
             return self.rect_sum((i0 as usize, i1 as usize), (j0 as usize, j1 as usize));
         }
-        (self.periodic_prefix(i1, j1) - self.periodic_prefix(i0, j1) - self.periodic_prefix(i1, j0)
-            + self.periodic_prefix(i0, j0)) as u64
+        let mut sum = 0;
+        for rows in runs_within_repeats(j0..j1, self.height) {
+            for columns in runs_within_repeats(i0..i1, self.width) {
+                sum += self.rect_sum(columns, rows);
+            }
+        }
+        sum
     }
 
     /// ∫ d over the rectangle [min, min + size] in fixed-point texel units, bilinear.
     pub(super) fn bilinear_rect_mass(&self, min: DVec2, size: DVec2) -> f64 {
         let columns = TentSpan::new(min.x, min.x + size.x, self.width);
         let rows = TentSpan::new(min.y, min.y + size.y, self.height);
-        let mut mass = 0.0;
-        for &(j0, j1, row_weight) in rows.groups() {
-            for &(i0, i1, column_weight) in columns.groups() {
-                mass += self.wrapped_sum((i0, i1), (j0, j1)) as f64 * (column_weight * row_weight);
-            }
+        let within = |span: &TentSpan, n: usize| span.first >= 0 && span.last < n as i64;
+        if let PrefixTable::Blocked(table) = &self.tables.sums
+            && within(&columns, self.width)
+            && within(&rows, self.height)
+        {
+            // The same integers, the groups along the box's edges scanned once each.
+            let unsigned = |span: &TentSpan| {
+                let mut groups = [(0, 0); TentSpan::MAX_GROUPS];
+                for (group, &(a, b, _)) in groups.iter_mut().zip(span.groups()) {
+                    *group = (a as usize, b as usize);
+                }
+                groups
+            };
+            let (c, r) = (unsigned(&columns), unsigned(&rows));
+            let sums: [[u64; TentSpan::MAX_GROUPS]; TentSpan::MAX_GROUPS] =
+                table.group_sums(&c[..columns.len], &r[..rows.len]);
+            return weighted_sum(&columns, &rows, |c, r| sums[r][c]);
         }
-        mass
+        let wrapped = |c: usize, r: usize| {
+            let ((i0, i1, _), (j0, j1, _)) = (columns.groups()[c], rows.groups()[r]);
+            self.wrapped_sum((i0, i1), (j0, j1))
+        };
+        weighted_sum(&columns, &rows, wrapped)
     }
 
     /// Whether the bilinear d is constant over the box [min, min + size]²: every texel whose
@@ -190,28 +204,134 @@ impl DensityMap {
             + ft * ((1.0 - fs) * q(0, 1) + fs * q(1, 1))
     }
 
-    /// The position in the box [min, min + size]² of the particle with uniform numbers `u`,
-    /// bilinear (see the module docs): x by the box's marginal, then y given x.
-    pub(super) fn bilinear_place(&self, min: DVec2, size: f64, u: [f64; 2]) -> DVec2 {
+    /// The positions in the box [min, min + size]² of the particles with uniform numbers
+    /// `uniforms`, bilinear (see the module docs): x by the box's marginal, then y given x.
+    /// The sums they read lie within the texels whose tents meet the box and one more on each
+    /// side. Where those span at most 64 texels a side (a leaf's box under a texel wide, as
+    /// most are, up to 61 texels) they are read once into a table of the box's own and the
+    /// columns' marginal is cumulated once; a larger box's inversions read the map's tables.
+    /// Either way by the box's size alone, so any two tables of the same texels (whole,
+    /// tiled, blocked) place the same positions.
+    pub(super) fn bilinear_place_each(
+        &self,
+        min: DVec2,
+        size: f64,
+        uniforms: &[[f64; 2]],
+        positions: &mut [DVec2],
+    ) {
+        let columns = TentSpan::new(min.x, min.x + size, self.width);
         let rows = TentSpan::new(min.y, min.y + size, self.height);
-        // Σ over columns [0, c) of the columns' tent-weighted sums over the box's rows.
-        let columns_prefix = |c: i64| {
-            rows.groups()
-                .iter()
-                .map(|&(j0, j1, w)| {
-                    (self.periodic_prefix(c, j1) - self.periodic_prefix(c, j0)) as f64 * w
-                })
-                .sum::<f64>()
+        let spans = (&columns, &rows);
+        let side = (columns.last - columns.first).max(rows.last - rows.first) + 4;
+        let place = match side {
+            ..=16 => Self::place_in_tent_box::<272>,
+            17..=32 => Self::place_in_tent_box::<1056>,
+            33..=64 => Self::place_in_tent_box::<4160>,
+            _ => {
+                let sum = |c, r| self.wrapped_sum(c, r);
+                // Σ over columns [first, c) of the columns' tent-weighted sums over the rows.
+                let columns_prefix = |c: i64| {
+                    rows.groups()
+                        .iter()
+                        .map(|&(j0, j1, w)| sum((columns.first, c), (j0, j1)) as f64 * w)
+                        .sum::<f64>()
+                };
+                let column = |k: i64, r: i64| sum((k, k + 1), (rows.first, r));
+                let place = (min, size, uniforms);
+                return self.place_by_tents(spans, place, positions, columns_prefix, column);
+            }
         };
-        let x = invert_tents(min.x, min.x + size, self.width, &columns_prefix, u[0]);
-        // Along y at x: the two columns around x, interpolated.
-        let s = x * self.width as f64 - 0.5;
-        let (k, t) = (s.floor() as i64, s - s.floor());
-        let column =
-            |k: i64, r: i64| (self.periodic_prefix(k + 1, r) - self.periodic_prefix(k, r)) as f64;
-        let rows_prefix = |r: i64| (1.0 - t) * column(k, r) + t * column(k + 1, r);
-        let y = invert_tents(min.y, min.y + size, self.height, &rows_prefix, u[1]);
-        DVec2::new(x, y)
+        place(self, spans, min, size, uniforms, positions);
+    }
+
+    /// [`Self::bilinear_place_each`] for a box whose texels and one more on each side span
+    /// at most 64 a side: each of those columns' sums over rows from the first, in a table of
+    /// `N` ≥ 64 × 65 entries read once, and the columns' tent-weighted sums over the box's
+    /// rows cumulated from its first column.
+    fn place_in_tent_box<const N: usize>(
+        &self,
+        (columns, rows): (&TentSpan, &TentSpan),
+        min: DVec2,
+        size: f64,
+        uniforms: &[[f64; 2]],
+        positions: &mut [DVec2],
+    ) {
+        // sums[x·(h + 1) + y]: Σ q over column c0 + x, rows [r0, r0 + y).
+        let mut sums = [0u64; N];
+        let (c0, r0) = (columns.first - 1, rows.first - 1);
+        let (w, h) = (columns.last + 3 - c0, rows.last + 3 - r0);
+        let stride = h as usize + 1;
+        for y in 0..h {
+            let j = (r0 + y).rem_euclid(self.height as i64) as usize;
+            for x in 0..w {
+                let q = self.fixed((c0 + x).rem_euclid(self.width as i64) as usize, j);
+                let at = x as usize * stride + y as usize;
+                sums[at + 1] = sums[at] + q;
+            }
+        }
+        // Indices outside the table do not occur (the module docs); clamped (a negative one
+        // wraps to a large one), they cannot panic.
+        let (w, h) = (w as usize - 1, h as usize);
+        let at =
+            |i: i64, j: i64| sums[((i - c0) as usize).min(w) * stride + ((j - r0) as usize).min(h)];
+        // prefix[c − first]: Σ over columns [first, c) of their weighted sums, c ≤ last + 2.
+        let mut prefix = [0.0; 64];
+        let mut running = 0.0;
+        for c in columns.first..=columns.last + 1 {
+            running += rows
+                .groups()
+                .iter()
+                .map(|&(j0, j1, w)| (at(c, j1) - at(c, j0)) as f64 * w)
+                .sum::<f64>();
+            prefix[(c + 1 - columns.first) as usize] = running;
+        }
+        let last = (columns.last + 2 - columns.first) as usize;
+        let columns_prefix = |c: i64| prefix[((c - columns.first).max(0) as usize).min(last)];
+        let column = |k: i64, r: i64| at(k, r) - at(k, rows.first);
+        let place = (min, size, uniforms);
+        self.place_by_tents((columns, rows), place, positions, columns_prefix, column);
+    }
+
+    /// [`Self::bilinear_place_each`] with the columns' cumulative marginal from
+    /// `columns_prefix` (from the box's first column) and `column(k, r)`, Σ q over column k
+    /// (any integer, the map repeating) and rows [first, r) of the box's.
+    fn place_by_tents(
+        &self,
+        (columns, rows): (&TentSpan, &TentSpan),
+        (min, size, uniforms): (DVec2, f64, &[[f64; 2]]),
+        positions: &mut [DVec2],
+        columns_prefix: impl Fn(i64) -> f64,
+        column: impl Fn(i64, i64) -> u64,
+    ) {
+        for (u, position) in uniforms.iter().zip(positions) {
+            let x = invert_tents(
+                columns,
+                (min.x, min.x + size),
+                self.width,
+                &columns_prefix,
+                u[0],
+            );
+            // Along y at x: the two columns around x, interpolated.
+            let s = x * self.width as f64 - 0.5;
+            let (k, t) = (s.floor() as i64, s - s.floor());
+            let rows_prefix =
+                |r: i64| (1.0 - t) * column(k, r) as f64 + t * column(k + 1, r) as f64;
+            let y_range = (min.y, min.y + size);
+            // The inversion reads the prefix at rows first ..= last + 2, several times each:
+            // over a short span they are made once.
+            let span = (rows.last + 2 - rows.first) as usize;
+            let y = if span < 64 {
+                let mut made = [0.0; 64];
+                for (r, prefix) in (rows.first..).zip(&mut made[..=span]) {
+                    *prefix = rows_prefix(r);
+                }
+                let prefix = |r: i64| made[((r - rows.first).max(0) as usize).min(span)];
+                invert_tents(rows, y_range, self.height, prefix, u[1])
+            } else {
+                invert_tents(rows, y_range, self.height, rows_prefix, u[1])
+            };
+            *position = DVec2::new(x, y);
+        }
     }
 
     /// ∫_A d over the footprint's parallelogram, bilinear, each integer translate counted:
@@ -234,7 +354,11 @@ impl DensityMap {
         let corners = footprint.corners().map(|c| c * scale);
         // The corners with the cells' origin at 0: cell k spans [k, k + 1].
         let from_cells = corners.map(|c| c - 0.5);
-        let (mut mass, mut whole) = (0.0, 0u64);
+        // The whole cells' sums: rows `row` and `row + 1` of columns `inside` and `inside + 1`,
+        // each of the four runs added to its own sum so consecutive rows' runs stay together
+        // (a blocked level reads eight rows' common run at once).
+        let mut whole = [(); 4].map(|()| WholeRuns::new(self));
+        let mut mass = 0.0;
         for row in lo.y as i64..hi.y as i64 {
             let (y0, y1) = (row as f64 + 0.5, row as f64 + 1.5);
             let strip = clip(&corners, |p| p.y - y0, |p| y1 - p.y);
@@ -247,18 +371,20 @@ impl DensityMap {
                 &met,
             );
             if !inside.is_empty() {
-                let rows = [row, row + 1].map(|r| r.rem_euclid(self.height as i64) as usize);
+                let [lower, upper] =
+                    [row, row + 1].map(|r| r.rem_euclid(self.height as i64) as usize);
                 let shifted = inside.start + 1..inside.end + 1;
-                whole += rows
-                    .iter()
-                    .map(|&j| self.row_sum(j, inside.clone()) + self.row_sum(j, shifted.clone()))
-                    .sum::<u64>();
+                whole[0].add(lower, inside.clone());
+                whole[1].add(lower, shifted.clone());
+                whole[2].add(upper, inside.clone());
+                whole[3].add(upper, shifted);
             }
             let edges = (met.start..inside.start).chain(inside.end..met.end);
             mass += edges
                 .map(|column| self.cell_mass_in(&strip, column, row))
                 .sum::<f64>();
         }
+        let whole: u64 = whole.into_iter().map(WholeRuns::sum).sum();
         (mass + whole as f64 / 4.0) / (FIXED_ONE * scale.x * scale.y)
     }
 }
@@ -294,13 +420,50 @@ impl DensityMap {
     }
 }
 
+/// The integers `range` as runs of indices within one repeat of a period `n` (the map's
+/// width or height), in order: [a, b) with a < b ≤ n, each wrapped into [0, n).
+fn runs_within_repeats(
+    range: std::ops::Range<i64>,
+    n: usize,
+) -> impl Iterator<Item = (usize, usize)> {
+    let n = n as i64;
+    let mut start = range.start;
+    std::iter::from_fn(move || {
+        (start < range.end).then(|| {
+            let i = start.rem_euclid(n);
+            let run = (n - i).min(range.end - start);
+            start += run;
+            (i as usize, (i + run) as usize)
+        })
+    })
+}
+
+/// Σ over the pairs of the spans' groups of the integer `sum(c, r)` (column group c, row
+/// group r) times the groups' weights, rows outer and columns inner: the order every bilinear
+/// mass adds them in, so its float sum is the same whichever table gives the integers.
+fn weighted_sum(columns: &TentSpan, rows: &TentSpan, sum: impl Fn(usize, usize) -> u64) -> f64 {
+    let mut mass = 0.0;
+    for (r, &(_, _, row_weight)) in rows.groups().iter().enumerate() {
+        for (c, &(_, _, column_weight)) in columns.groups().iter().enumerate() {
+            mass += sum(c, r) as f64 * (column_weight * row_weight);
+        }
+    }
+    mass
+}
+
 /// The position in [lo, hi] (within [0, 1]) where the cumulative of a tent-interpolated
 /// sequence over `n` texels passes the fraction `u` of its integral over [lo, hi];
-/// `prefix(c)` is the sequence summed over texels [0, c) (any integer c, the sequence
-/// repeating with period n), non-decreasing. See the module docs.
-fn invert_tents(lo: f64, hi: f64, n: usize, prefix: &dyn Fn(i64) -> f64, u: f64) -> f64 {
+/// `prefix(c)` is the sequence summed over texels [first, c) (the first texel whose tent
+/// meets the interval; c from there to the last one's index + 2, the sequence repeating with
+/// period n), non-decreasing; `span` is `TentSpan::new(lo, hi, n)`. See the module docs.
+fn invert_tents(
+    span: &TentSpan,
+    (lo, hi): (f64, f64),
+    n: usize,
+    prefix: impl Fn(i64) -> f64,
+    u: f64,
+) -> f64 {
     let (a, b) = (lo * n as f64, hi * n as f64);
-    let span = TentSpan::new(lo, hi, n);
     let value = |i: i64| prefix(i + 1) - prefix(i);
     // The low partly covered texels' tents before a: their share left of the interval.
     let before_a: f64 = (span.first..=span.last)
@@ -398,8 +561,14 @@ mod tests {
         sum * (x[1] - x[0]) * (y[1] - y[0]) / (n * n) as f64
     }
 
-    const MAPS: [(usize, usize, u32); 5] =
-        [(7, 5, 1), (16, 16, 2), (1, 9, 3), (12, 1, 4), (37, 23, 5)];
+    const MAPS: [(usize, usize, u32); 6] = [
+        (7, 5, 1),
+        (16, 16, 2),
+        (1, 9, 3),
+        (12, 1, 4),
+        (37, 23, 5),
+        (97, 71, 6),
+    ];
 
     /// d interpolates the texels: at a texel's centre it is the texel's value, it is
     /// continuous across texel edges and across the square's edges (the map tiles), and

@@ -23,6 +23,11 @@
 //!   rows that make a row of blocks are read together, so it reads about 8 texels per texel
 //!   of the footprint's perimeter.
 //!
+//! A bilinear level (`bilinear.rs`) asks the same questions of the texels whose tents meet a
+//! box: its mass by the box's up to 6 × 6 groups, its leaf's placements from a table of its
+//! own of the box's texels and one more on each side (up to 61 texels a side), its
+//! footprints' whole cells by the same bands of eight rows.
+//!
 //! Elsewhere (a box's constancy where it is constant, `mean_over_square`) the cost grows with
 //! the box's perimeter in texels times B, where a level's own map answers in O(1).
 
@@ -118,19 +123,20 @@ impl<T: Entry> BlockedPrefix<T> {
 }
 
 impl BlockedPrefix<u64> {
-    /// The sums over the rectangles `columns[c]` × `rows[r]` (a box's groups of texels: its
-    /// first column, interior and last column, contiguous, and the same for rows), each the
+    /// The sums over the rectangles `columns[c]` × `rows[r]` (a box's groups of texels, at
+    /// most `N` a side: its first column, interior and last column, or a bilinear box's
+    /// partly covered texels and interior, contiguous, and the same for rows), each the
     /// integer [`Self::rect`] gives it: the largest read as the whole span's sum less the
     /// others, which are scanned. A box's groups along its edges are a texel wide, so this
     /// reads its perimeter's texels, where each group's own rectangle would read strips up to
     /// B texels wide along both sides of every edge between groups (the whole span's sum still
     /// reads the strips under B wide along its own unaligned edges).
-    pub(super) fn group_sums(
+    pub(super) fn group_sums<const N: usize>(
         &self,
         columns: &[(usize, usize)],
         rows: &[(usize, usize)],
-    ) -> [[u64; 3]; 3] {
-        let mut sums = [[0u64; 3]; 3];
+    ) -> [[u64; N]; N] {
+        let mut sums = [[0u64; N]; N];
         let area = |(c, r): (usize, usize)| (columns[c].1 - columns[c].0) * (rows[r].1 - rows[r].0);
         let pairs = || (0..rows.len()).flat_map(|r| (0..columns.len()).map(move |c| (c, r)));
         let Some(largest) = pairs().max_by_key(|&pair| area(pair)) else {
@@ -330,7 +336,7 @@ mod tests {
                     })
                     .collect();
                 let own = DensityMap::with_layout(width, height, &values, MapFilter::Nearest, None);
-                let blocked = DensityMap::roughness_level(&shared, level);
+                let blocked = DensityMap::roughness_level(&shared, level, MapFilter::Nearest);
                 let (own, blocked) = match (own, blocked) {
                     (Ok(own), Ok(blocked)) => (own, blocked),
                     (Err(DensityMapError::Empty), Err(DensityMapError::Empty)) => continue,
@@ -396,25 +402,35 @@ mod tests {
                         blocked.tables.changes.rect(columns, rows)
                     );
                 }
+                let bilinear = (
+                    DensityMap::with_layout(width, height, &values, MapFilter::Bilinear, None)
+                        .unwrap(),
+                    DensityMap::roughness_level(&shared, level, MapFilter::Bilinear).unwrap(),
+                );
                 assert_same_answers(&own, &blocked, &mut rng, 1000, &format!("level {level}"));
+                let what = format!("level {level}, bilinear");
+                assert_same_answers(&bilinear.0, &bilinear.1, &mut rng, 1000, &what);
                 // A tree's boxes: dyadic squares, whole blocks on a map whose sides are powers
                 // of two (the one-look-up paths of constancy and mass).
-                for depth in 0..7u32 {
-                    let side = 1.0 / f64::from(1u32 << depth);
-                    for k in 0..(1u32 << (2 * depth)).min(256) {
-                        let cell = DVec2::new(f64::from(k % (1 << depth)), f64::from(k >> depth));
-                        let min = cell * side;
-                        assert_eq!(
-                            (
-                                own.is_constant_over(min, side),
-                                own.quarter_probabilities(min, side)
-                            ),
-                            (
-                                blocked.is_constant_over(min, side),
-                                blocked.quarter_probabilities(min, side)
-                            ),
-                            "level {level}, box {min} {side}"
-                        );
+                for (own, blocked) in [(&own, &blocked), (&bilinear.0, &bilinear.1)] {
+                    for depth in 0..7u32 {
+                        let side = 1.0 / f64::from(1u32 << depth);
+                        for k in 0..(1u32 << (2 * depth)).min(256) {
+                            let cell =
+                                DVec2::new(f64::from(k % (1 << depth)), f64::from(k >> depth));
+                            let min = cell * side;
+                            assert_eq!(
+                                (
+                                    own.is_constant_over(min, side),
+                                    own.quarter_probabilities(min, side)
+                                ),
+                                (
+                                    blocked.is_constant_over(min, side),
+                                    blocked.quarter_probabilities(min, side)
+                                ),
+                                "level {level}, box {min} {side}"
+                            );
+                        }
                     }
                 }
             }

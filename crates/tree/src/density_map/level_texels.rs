@@ -160,11 +160,6 @@ impl LevelTexels {
         u32::from(i + 1 < self.width && self.fixed(level, i + 1, j) != q)
             + u32::from(j + 1 < self.height && self.fixed(level, i, j + 1) != q)
     }
-
-    /// Whether `level` is 0 at every texel.
-    pub(super) fn is_empty(&self, level: usize) -> bool {
-        (0..self.height).all(|j| (0..self.width).all(|i| self.fixed(level, i, j) == 0))
-    }
 }
 
 #[cfg(test)]
