@@ -809,7 +809,9 @@ impl DensityMap {
     /// [`Self::place`] for several particles of the box [min, min + size]²: `uniforms[k]`
     /// places `positions[k]`. What depends on the box alone is made once: a blocked level's
     /// box of up to 64 × 64 texels reads its texels once into a table of its own (the same
-    /// integers), where its binary searches would read strips of texels at every step.
+    /// integers), where its binary searches would read strips of texels at every step; a
+    /// bilinear map's box whose tents span up to 61 texels a side does so under every table
+    /// (`density_map/bilinear.rs`).
     pub fn place_each(
         &self,
         min: DVec2,

@@ -20,8 +20,7 @@
 //!   first texel, and half of the centre's own) finds the segment, and the quadratic's root
 //!   the position. Given x, the density along y interpolates the two columns around x
 //!   linearly, and the same inversion places y. Every sum lies within the texels whose tents
-//!   meet the box and one more on each side, so a blocked level reads them once
-//!   (`blocked.rs`).
+//!   meet the box, one more before and two after, so a small box's are read once.
 //! - **Footprints.** ∫_A d over a parallelogram clips it to each cell between four texel
 //!   centres (where d is one bilinear patch) and integrates the patch over the clipped polygon
 //!   from its moments ([`super::polygon`]).
@@ -60,15 +59,17 @@ pub(super) struct TentSpan {
 }
 
 impl TentSpan {
-    /// Room for a span's groups: at most two partly covered texels at each end and the whole
-    /// ones between, or at most five partly covered ones of an interval under three texels
-    /// wide.
+    /// Room for a span's groups (at most five: up to two partly covered texels at each end
+    /// and the whole ones between, or the up to four partly covered ones of an interval under
+    /// three texels wide).
     pub(super) const MAX_GROUPS: usize = 6;
 
     pub(super) fn new(lo: f64, hi: f64, n: usize) -> Self {
         let (a, b) = (lo * n as f64, hi * n as f64);
-        // Texel i's tent covers (i − ½, i + 3/2) in texel coordinates.
-        let first = (a - 1.5).floor() as i64 + 1;
+        // Texel i's tent covers (i − ½, i + 3/2) in texel coordinates. (⌊a − ½⌋, not
+        // ⌊a − 3/2⌋ + 1: the same in exact arithmetic, but a − 3/2 rounds for a just under ½,
+        // where the inversion's segment then starts at ⌊a − ½⌋, a texel before the span.)
+        let first = (a - 0.5).floor() as i64;
         let last = ((b + 0.5).ceil() as i64 - 1).max(first);
         let whole = ((a + 0.5).ceil() as i64, (b - 1.5).floor() as i64);
         let weight = |i: i64| {
@@ -94,7 +95,7 @@ impl TentSpan {
                 push((i, i + 1, weight(i)));
             }
         } else {
-            // No whole tent: the interval is under three texels wide, and meets at most five.
+            // No whole tent: the interval is under three texels wide, and meets at most four.
             for i in first..=last {
                 push((i, i + 1, weight(i)));
             }
@@ -111,6 +112,9 @@ impl DensityMap {
     /// Σ q over texel columns [i0, i1) × rows [j0, j1), any integers (the map repeats over
     /// the plane): one rectangle per piece within one repeat.
     fn wrapped_sum(&self, (i0, i1): (i64, i64), (j0, j1): (i64, i64)) -> u64 {
+        if i0 >= i1 || j0 >= j1 {
+            return 0;
+        }
         let (w, h) = (self.width as i64, self.height as i64);
         if 0 <= i0 && i1 <= w && 0 <= j0 && j1 <= h {
             return self.rect_sum((i0 as usize, i1 as usize), (j0 as usize, j1 as usize));
@@ -206,10 +210,11 @@ impl DensityMap {
 
     /// The positions in the box [min, min + size]² of the particles with uniform numbers
     /// `uniforms`, bilinear (see the module docs): x by the box's marginal, then y given x.
-    /// The sums they read lie within the texels whose tents meet the box and one more on each
-    /// side. Where those span at most 64 texels a side (a leaf's box under a texel wide, as
-    /// most are, up to 61 texels) they are read once into a table of the box's own and the
-    /// columns' marginal is cumulated once; a larger box's inversions read the map's tables.
+    /// The sums they read lie within the texels whose tents meet the box, one more before and
+    /// two more after. Where the tents span at most 61 texels a side (a leaf's box under a
+    /// texel wide, as most are) those texels, at most 64 a side, are read once into a table
+    /// of the box's own and the columns' marginal is cumulated once; a larger box's
+    /// inversions read the map's tables.
     /// Either way by the box's size alone, so any two tables of the same texels (whole,
     /// tiled, blocked) place the same positions.
     pub(super) fn bilinear_place_each(
@@ -510,7 +515,7 @@ fn invert_tents(
     }
     let ((start, below), (end, _)) = (breakpoint(lo_m), breakpoint(lo_m + 1));
     // Within the segment the density is linear between the centres k and k + 1 around it.
-    let k = (start - 0.5).floor() as i64;
+    let k = ((start - 0.5).floor() as i64).max(span.first);
     let (c0, c1) = (value(k), value(k + 1));
     let (ts, te) = (start - k as f64 - 0.5, end - k as f64 - 0.5);
     let slope = c1 - c0;
@@ -528,9 +533,11 @@ fn invert_tents(
 
 #[cfg(test)]
 mod tests {
+    use std::sync::Arc;
+
     use super::*;
-    use crate::MapFilter;
     use crate::tea::{TeaRng, unit_pair};
+    use crate::{LevelTexels, MapFilter};
 
     /// A `width` × `height` bilinear map of a few repeated values, zeros included (so some
     /// regions are constant and some vanish).
@@ -716,6 +723,39 @@ mod tests {
                         (along(p.y) / column - u[1]).abs() < 2e-3,
                         "{w}x{h} box {min} {size}: y {p}"
                     );
+                }
+            }
+        }
+    }
+
+    /// Boxes whose low edge lies a rounding below a texel's centre (a = x·n just under ½,
+    /// where a − 3/2 rounds to −1) place inside the box under whole and blocked tables, small
+    /// and large boxes alike: the inversion's first segment starts at ⌊a − ½⌋, which the span
+    /// includes (it started a texel later, and a large box's sums then read a reversed range
+    /// and panicked).
+    #[test]
+    fn boxes_at_a_rounding_below_a_centre_place_inside() {
+        for (width, height) in [(1, 200), (49, 3), (98, 98), (1, 5)] {
+            let values: Vec<f64> = (0..width * height)
+                .map(|k| [0.2, 1.0, 0.5][k % 3])
+                .collect();
+            let own = DensityMap::with_filter(width, height, &values, MapFilter::Bilinear).unwrap();
+            let family = LevelTexels::new(width, height, 1, |k| (0, [values[k], 0.0])).unwrap();
+            let blocked =
+                DensityMap::roughness_level(&Arc::new(family), 0, MapFilter::Bilinear).unwrap();
+            for lo in [0.499_999_999_999_999_94, 0.499_999_999_999_999_9] {
+                let x = lo / width as f64;
+                for size in [0.01, 0.5] {
+                    let min = DVec2::new(x, lo / height as f64);
+                    for u in [[0.0, 0.0], [0.0, 0.5], [0.3, 0.9]] {
+                        let p = own.place(min, size, u);
+                        assert_eq!(p, blocked.place(min, size, u));
+                        let inside = |v: f64, lo: f64| lo <= v && v <= lo + size;
+                        assert!(
+                            inside(p.x, min.x) && inside(p.y, min.y),
+                            "{p} in {min} {size}"
+                        );
+                    }
                 }
             }
         }

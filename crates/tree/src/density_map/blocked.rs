@@ -24,9 +24,9 @@
 //!   of the footprint's perimeter.
 //!
 //! A bilinear level (`bilinear.rs`) asks the same questions of the texels whose tents meet a
-//! box: its mass by the box's up to 6 × 6 groups, its leaf's placements from a table of its
-//! own of the box's texels and one more on each side (up to 61 texels a side), its
-//! footprints' whole cells by the same bands of eight rows.
+//! box: its mass by the box's up to 5 × 5 groups, its leaf's placements from a table of its
+//! own of those texels, one more before and two after (where the tents span up to 61 texels a
+//! side), its footprints' whole cells by the same bands of eight rows.
 //!
 //! Elsewhere (a box's constancy where it is constant, `mean_over_square`) the cost grows with
 //! the box's perimeter in texels times B, where a level's own map answers in O(1).
