@@ -10,13 +10,14 @@
 //! levels), the same with a grain of ±15% that changes at every texel, a painted map of three
 //! values (a disc and stripes; exact levels), and α that cycles through 97 values from 0.01 to
 //! 0.31 at every texel (the worst case: every level meets every tile, so the levels share one
-//! family of texels, marked "shared").
+//! family of texels, marked "shared"), filtered nearest and bilinear.
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use glint_brdf::{
-    DensityMap, DiscreteBrdf, DistributionKind, GlintParameters, MapBytes, Microfacet, RoughnessMap,
+    DensityMap, DiscreteBrdf, DistributionKind, GlintParameters, MapBytes, MapFilter, Microfacet,
+    RoughnessMap,
 };
 
 fn main() {
@@ -69,13 +70,19 @@ fn main() {
         "| map | K | level maps | bytes per texel (levels) | K maps stored whole | build (ms per megatexel) |"
     );
     println!("|---|---|---|---|---|---|");
-    for (name, alphas) in [
-        ("smooth gradient", &gradient),
-        ("gradient with a ±15% grain", &grain),
-        ("painted, 3 values", &painted),
-        ("97 values at every texel", &noise),
+    for (name, alphas, filter) in [
+        ("smooth gradient", &gradient, MapFilter::Nearest),
+        ("gradient with a ±15% grain", &grain, MapFilter::Nearest),
+        ("painted, 3 values", &painted, MapFilter::Nearest),
+        ("97 values at every texel", &noise, MapFilter::Nearest),
+        (
+            "97 values at every texel, bilinear",
+            &noise,
+            MapFilter::Bilinear,
+        ),
     ] {
-        let alpha = Arc::new(RoughnessMap::new(side, side, alphas).expect("a valid map"));
+        let alpha = RoughnessMap::new(side, side, alphas).expect("a valid map");
+        let alpha = Arc::new(alpha.with_filter(filter));
         for levels in [4, 8, 16] {
             let parameters = GlintParameters {
                 alpha_map: Some(Arc::clone(&alpha)),

@@ -269,6 +269,13 @@ class Material:
         return self._native.smith_table
 
     @property
+    def map_bytes(self):
+        """The heap memory the material's maps hold, in bytes: the maps given and those built
+        from them (its roughness levels', the density-weighted tint's), as counted against the
+        4.29 GB bound a material's maps may hold before any is built. 0 without maps."""
+        return self._native.map_bytes
+
+    @property
     def negligible_test(self):
         """The negligible-query test's constants, for a renderer that runs the test in its own
         kernels before asking for f̂ (the Mitsuba plugin does, in Dr.Jit): a dict of

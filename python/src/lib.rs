@@ -289,6 +289,13 @@ impl Material {
         Ok(Some(dict))
     }
 
+    /// The heap memory the material's maps hold, in bytes (glint-brdf's
+    /// `DiscreteBrdf::map_bytes`).
+    #[getter]
+    fn map_bytes(&self) -> u64 {
+        self.inner.brdf().map_bytes()
+    }
+
     /// Whether f_hat, f_smooth and weights are one number per row.
     #[getter]
     fn gray(&self) -> bool {

@@ -346,6 +346,15 @@ impl DiscreteBrdf {
     /// # Errors
     /// A [`BrdfError`] naming the invalid parameter.
     pub fn new(parameters: GlintParameters) -> Result<Self, BrdfError> {
+        Self::within_map_budget(parameters, crate::MAX_MAP_BYTES)
+    }
+
+    /// [`Self::new`] refusing maps that would hold more than `budget` bytes (the tests' way to
+    /// reach the refusal with maps of a test's size).
+    pub(crate) fn within_map_budget(
+        parameters: GlintParameters,
+        budget: u64,
+    ) -> Result<Self, BrdfError> {
         let gamma = parameters.gamma_radians;
         if !(gamma >= 1e-6 && gamma <= 60f64.to_radians()) {
             return Err(BrdfError::InvalidConeRadius { gamma });
@@ -371,7 +380,8 @@ impl DiscreteBrdf {
         }
         // The levels' weights are made once: the budget counts their maps, then they are built.
         let level_weights = MapBytes::level_weights(&parameters)?;
-        let bytes = MapBytes::with_level_weights(&parameters, level_weights.as_ref()).check()?;
+        let bytes = MapBytes::with_level_weights(&parameters, level_weights.as_ref())
+            .check_within(budget)?;
         let levels = roughness_levels(
             parameters.density_map.as_ref(),
             level_weights,

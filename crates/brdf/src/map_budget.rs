@@ -8,9 +8,9 @@
 //! roughness level's map d·w_k is 0 wherever α is not near the level's, so K levels hold
 //! about two maps' worth where α varies smoothly or in regions (8 levels of a smooth 4096²
 //! gradient: 2.5 maps). Where it changes at every texel they would hold up to K maps' worth
-//! (a 4096² map of 97 values at 64 levels: 56 non-empty levels, 11.9 GB), and a nearest
-//! map's levels share one family of texels instead (9 bytes a texel, and 0.36 a level:
-//! 0.49 GB for that map; `LevelBytes`, in `surface_maps.rs`, chooses). [`DiscreteBrdf::new`] counts what
+//! (a 4096² map of 97 values at 64 levels: 56 non-empty levels, 11.9 GB), and there its
+//! levels share one family of texels instead (9 bytes a texel, and 0.36 a level: 0.49 GB for
+//! that map, nearest or bilinear; `LevelBytes`, in `surface_maps.rs`, chooses). [`DiscreteBrdf::new`] counts what
 //! the material will hold from one pass over the maps' texels (which tiles each derived map
 //! would occupy, [`DensityMap::bytes_for_occupancy`]) and refuses, with
 //! [`BrdfError::MapsTooLarge`], a material over [`MAX_MAP_BYTES`]: every interface (scene
@@ -27,11 +27,12 @@ use crate::surface_maps::{LevelBytes, LevelWeights, WeightedTint};
 
 /// The most memory a material's maps may hold, in bytes (4 GiB, 4.29 GB): the maps it is given
 /// and the ones it builds from them. An 8192² density map takes at most 0.85 GB; a 4096²
-/// roughness map whose α changes at every texel fits at any K filtered nearest (its levels
-/// share their texels: 0.49 GB at 64 levels), and bilinear at up to 19 non-empty levels
-/// (4.17 GB), 18 with a density map of its size; one whose α varies smoothly or in regions at
-/// any K (its levels hold a few density maps' worth:
-/// `roughness_levels_hold_about_two_maps_not_k`).
+/// roughness map whose α changes at every texel fits at any K, nearest or bilinear (its levels
+/// share their texels: 0.62 GB with the map at 64 levels), and one whose α varies smoothly or
+/// in regions at any K (its levels hold a few density maps' worth:
+/// `roughness_levels_hold_about_two_maps_not_k`). A material reaches the bound only with maps
+/// of tens of millions of texels (8192² density, tint and roughness maps at 64 levels: about
+/// 150 bytes a texel, 10 GB).
 pub const MAX_MAP_BYTES: u64 = 4 << 30;
 
 /// What a material's maps hold, in bytes, counted before they are built.
@@ -131,7 +132,12 @@ impl MapBytes {
     /// # Errors
     /// [`BrdfError::MapsTooLarge`] with this count.
     pub fn check(self) -> Result<Self, BrdfError> {
-        if self.total() > MAX_MAP_BYTES {
+        self.check_within(MAX_MAP_BYTES)
+    }
+
+    /// [`Self::check`] against `budget` bytes.
+    pub(crate) fn check_within(self, budget: u64) -> Result<Self, BrdfError> {
+        if self.total() > budget {
             return Err(BrdfError::MapsTooLarge { bytes: self });
         }
         Ok(self)
@@ -248,59 +254,80 @@ mod tests {
         }
     }
 
-    /// A roughness map whose levels would pass the budget is refused before anything is
-    /// built, naming the bytes, the levels and the map's size; fewer levels pass. The same
-    /// map filtered nearest fits: its levels share one family of texels.
+    /// A material whose maps would pass its budget is refused before anything is built,
+    /// with the bytes it counted, and built when they fit: a bilinear map of 97 α values
+    /// changing at every texel, at 64 levels (56 of them non-empty), under budgets one byte
+    /// below and at its count. At 4096², the levels' own maps would hold 11.9 GB; filtered
+    /// either way they share one family of texels (9 bytes a texel, 0.36 a level) and fit
+    /// [`MAX_MAP_BYTES`] in 0.62 GB with the map itself. The message names the bytes, the
+    /// levels and the map's size.
     #[test]
     fn a_material_over_the_budget_is_refused_before_building() {
-        // 4096² texels of 97 values, bilinear: each level map needs 213 MB, 56 of them 11.9 GB.
-        let (width, height) = (4096, 4096);
-        let alphas: Vec<f64> = (0..width * height)
-            .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
-            .collect();
-        let nearest = Arc::new(RoughnessMap::new(width, height, &alphas).unwrap());
-        let alpha = Arc::new((*nearest).clone().with_filter(MapFilter::Bilinear));
-        let material = |levels| GlintParameters {
-            alpha_map: Some(Arc::clone(&alpha)),
+        let ninety_seven = |width: usize, height: usize| {
+            let alphas: Vec<f64> = (0..width * height)
+                .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
+                .collect();
+            Arc::new(RoughnessMap::new(width, height, &alphas).unwrap())
+        };
+        let material = |alpha: &Arc<RoughnessMap>, filter, levels| GlintParameters {
+            alpha_map: Some(Arc::new((**alpha).clone().with_filter(filter))),
             roughness_levels: levels,
             ..parameters()
         };
-        let error = match DiscreteBrdf::new(material(64)) {
-            Err(error) => error,
-            Ok(_) => panic!("a material of 11.9 GB was built"),
-        };
-        let BrdfError::MapsTooLarge { bytes } = error else {
-            panic!("{error}");
-        };
-        // Levels between the map's 97 values that no texel's hat function reaches hold
-        // nothing and count nothing; every other one occupies every tile (the values change
-        // at every texel), so its tables are whole.
-        assert_eq!(bytes.level_maps, 56);
-        assert!(!bytes.shared_levels);
-        let whole = DensityMap::bytes_for(width, height) as u64;
-        assert_eq!(bytes.levels, 56 * whole);
-        // Nearest, the 56 levels share 9 bytes a texel and hold 0.36 bytes a texel each.
-        let shared = MapBytes::of(&GlintParameters {
-            alpha_map: Some(Arc::clone(&nearest)),
-            roughness_levels: 64,
-            ..parameters()
-        })
-        .unwrap();
-        assert!(shared.shared_levels);
-        let texels = (width * height) as u64;
-        assert_eq!(
-            shared.levels,
-            9 * texels + 56 * DensityMap::roughness_level_bytes(width, height) as u64
+        let small = ninety_seven(160, 96);
+        let counted = MapBytes::of(&material(&small, MapFilter::Bilinear, 64)).unwrap();
+        assert!(counted.shared_levels);
+        let over = DiscreteBrdf::within_map_budget(
+            material(&small, MapFilter::Bilinear, 64),
+            counted.total() - 1,
         );
-        assert!(shared.levels < 30 * texels, "{}", shared.levels);
-        assert!(shared.check().is_ok());
-        assert!(bytes.total() > 11_000_000_000, "{}", bytes.total());
+        match over {
+            Err(BrdfError::MapsTooLarge { bytes }) => assert_eq!(bytes, counted),
+            Err(error) => panic!("{error}"),
+            Ok(_) => panic!("a material over its budget was built"),
+        }
+        let fits = DiscreteBrdf::within_map_budget(
+            material(&small, MapFilter::Bilinear, 64),
+            counted.total(),
+        )
+        .unwrap();
+        assert_eq!(fits.map_bytes(), counted.total());
+
+        let (width, height) = (4096, 4096);
+        let large = ninety_seven(width, height);
+        let texels = (width * height) as u64;
+        for filter in MapFilter::ALL {
+            let bytes = MapBytes::of(&material(&large, filter, 64)).unwrap();
+            // Levels between the map's 97 values that no texel's hat function reaches hold
+            // nothing and count nothing; every other one occupies every tile, so its own map
+            // would be whole: 56 of them, 11.9 GB.
+            assert_eq!(bytes.level_maps, 56);
+            assert!(56 * DensityMap::bytes_for(width, height) as u64 > 11_000_000_000);
+            assert!(bytes.shared_levels, "{filter:?}");
+            assert_eq!(
+                bytes.levels,
+                9 * texels + 56 * DensityMap::roughness_level_bytes(width, height) as u64
+            );
+            assert!(bytes.levels < 30 * texels, "{}", bytes.levels);
+            assert!(bytes.check().is_ok());
+        }
+        let error = BrdfError::MapsTooLarge {
+            bytes: MapBytes {
+                given: 134_217_728,
+                levels: 11_920_000_000,
+                level_maps: 56,
+                shared_levels: false,
+                roughness: Some((width, height, 64)),
+                weighted_tint: 0,
+            },
+        };
         let message = error.to_string();
         for part in [
             "roughness_levels = 64",
             "alpha_map",
             "4096 x 4096",
             "4.29 GB",
+            "lower roughness_levels",
         ] {
             assert!(message.contains(part), "{message:?} lacks {part:?}");
         }
@@ -318,8 +345,5 @@ mod tests {
         let message = tinted.to_string();
         assert!(message.contains("a tint map costs"), "{message}");
         assert!(!error.to_string().contains("a tint map costs"));
-        // Without a density map 19 levels (4.17 GB) fit and 20 (4.39 GB) do not.
-        assert!(MapBytes::of(&material(19)).unwrap().check().is_ok());
-        assert!(MapBytes::of(&material(20)).unwrap().check().is_err());
     }
 }

@@ -527,9 +527,8 @@ pub(crate) struct LevelBytes {
     pub(crate) maps: usize,
     /// Their bytes, each its own density map.
     own: u64,
-    /// Their bytes, blocked over one family (`None` for a bilinear map: a bilinear map reads
-    /// its summed-area table's corners anywhere, which the blocked tables answer only slowly).
-    shared: Option<u64>,
+    /// Their bytes, blocked over one family.
+    shared: u64,
 }
 
 impl LevelBytes {
@@ -542,10 +541,8 @@ impl LevelBytes {
         let own = nonempty()
             .map(|o| DensityMap::bytes_for_occupancy(o) as u64)
             .sum();
-        let shared = (weights.alpha.filter() == MapFilter::Nearest).then(|| {
-            (LevelTexels::bytes_for(width, height)
-                + maps * DensityMap::roughness_level_bytes(width, height)) as u64
-        });
+        let shared = (LevelTexels::bytes_for(width, height)
+            + maps * DensityMap::roughness_level_bytes(width, height)) as u64;
         Self { maps, own, shared }
     }
 
@@ -555,20 +552,18 @@ impl LevelBytes {
     /// reads its texels where a box cuts its 8 × 8 blocks and compares texels to tell whether
     /// a box under a block is constant, so those questions cost more than under its own map,
     /// while a leaf's box of up to 64 × 64 texels is read once, so placements cost less.
-    /// Queries on one level's 1024² map took 0.84–1.00× the time of its own map's; a
-    /// glitter_pattern frame (a 256 × 128 map of two α, tiny boxes) 1.065× the instructions
-    /// (docs/performance.md). So where the levels' own tiled maps hold less than 4× the
-    /// family's bytes (α smooth or in regions: about two maps' worth) they are kept.
+    /// Queries on one level's 1024² map took 0.84–1.00× the time of its own map's (bilinear:
+    /// 0.92× for white noise, 1.33× for a gradient's level); a glitter_pattern frame (a
+    /// 256 × 128 map of two α, tiny boxes) 1.065× the instructions (docs/performance.md). So
+    /// where the levels' own tiled maps hold less than 4× the family's bytes (α smooth or in
+    /// regions: about two maps' worth) they are kept.
     pub(crate) fn shared(&self) -> bool {
-        self.shared.is_some_and(|shared| 4 * shared <= self.own)
+        4 * self.shared <= self.own
     }
 
     /// The bytes the levels hold, kept as [`Self::shared`] says.
     pub(crate) fn bytes(&self) -> u64 {
-        match self.shared {
-            Some(shared) if self.shared() => shared,
-            _ => self.own,
-        }
+        if self.shared() { self.shared } else { self.own }
     }
 }
 
@@ -642,9 +637,9 @@ mod tests {
     use super::*;
 
     /// Levels that share one family of texels are the levels' own maps: for noisy α over a
-    /// density map with zeros, interpolated (8 and 2 levels) and exact (3 values), every
-    /// level's texels and its answers on random boxes and footprints are bit for bit those of
-    /// the level's map built from its values.
+    /// density map with zeros, interpolated (8 and 2 levels) and exact (3 values), filtered
+    /// nearest and bilinear, every level's texels and its answers on random boxes and
+    /// footprints are bit for bit those of the level's map built from its values.
     #[test]
     fn shared_levels_are_the_levels_own_maps() {
         let (width, height) = (67, 45);
@@ -661,9 +656,16 @@ mod tests {
         let density: Vec<f64> = (0..texels)
             .map(|k| if k % 7 == 0 { 0.0 } else { next() })
             .collect();
-        let density = Arc::new(DensityMap::new(width, height, &density).unwrap());
-        for (alphas, levels) in [(&noisy, 8), (&noisy, 2), (&three, 8)] {
-            let alpha = RoughnessMap::new(width, height, alphas).unwrap();
+        let cases = [(&noisy, 8), (&noisy, 2), (&three, 8)];
+        for ((alphas, levels), filter) in cases
+            .into_iter()
+            .flat_map(|case| [MapFilter::Nearest, MapFilter::Bilinear].map(|filter| (case, filter)))
+        {
+            let density =
+                Arc::new(DensityMap::with_filter(width, height, &density, filter).unwrap());
+            let alpha = RoughnessMap::new(width, height, alphas)
+                .unwrap()
+                .with_filter(filter);
             let build = |shared| {
                 let weights = LevelWeights::new(Some(&density), &alpha, levels).unwrap();
                 roughness_levels(Some(&density), Some(weights), levels, shared).unwrap()

@@ -273,10 +273,10 @@ mod tests {
         assert_eq!(requests.answer(&line(0)).unwrap(), first);
     }
 
-    /// A material's maps count in the cache's memory: three materials with a 512² bilinear
-    /// roughness map at 20 levels (about 110 MB each, 67 MB of it level maps, one per level:
-    /// bilinear levels do not share their texels) leave two cached, not 64 (each was counted
-    /// as 2 MB, and the cache grew by the maps' size with every line).
+    /// A material's maps count in the cache's memory: materials with a 512² bilinear
+    /// roughness map at 20 levels (the map's α, its levels' shared texels and tables, and 20
+    /// count trees: about 46 MB each) leave as many cached as fit the cache's bytes, not 64
+    /// (each was counted as 2 MB, and the cache grew by the maps' size with every line).
     #[test]
     fn the_material_cache_counts_the_maps() {
         let side = 512;
@@ -297,18 +297,17 @@ mod tests {
         let mut requests = JsonLines::new();
         requests.answer(&line(0)).unwrap();
         let one = requests.cached_bytes();
-        let level_maps = 20 * glint_brdf::DensityMap::bytes_for(side, side);
-        // Two fit and three do not (the maps' size sets the test's scale).
-        assert!(
-            3 * one > MATERIAL_CACHE_BYTES && 2 * one <= MATERIAL_CACHE_BYTES,
-            "{one} bytes counted"
-        );
-        assert!(one > level_maps, "{one} bytes counted");
-        for seed in 1..3 {
+        // α (8 bytes a texel), the levels' family of texels (9) and their 20 blocked tables.
+        let maps =
+            17 * side * side + 20 * glint_brdf::DensityMap::roughness_level_bytes(side, side);
+        assert!(one > maps, "{one} bytes counted");
+        let fit = MATERIAL_CACHE_BYTES / one;
+        assert!((2..10).contains(&fit), "{one} bytes counted");
+        for seed in 1..=fit {
             requests.answer(&line(seed)).unwrap();
             assert!(requests.cached_bytes() <= MATERIAL_CACHE_BYTES);
         }
-        assert_eq!(requests.cached_materials(), 2);
+        assert_eq!(requests.cached_materials(), fit);
     }
 
     /// A coloured tint map makes the answers colours even without a Fresnel term: a cyan tint
