@@ -359,13 +359,28 @@ impl DensityMap {
         let q = |i: usize, j: usize| fixed_point(values[(height - 1 - j) * width + i]);
         let occupancy = MapOccupancy::of_values(width, height, values);
         let tables = Tables::new(width, height, &q, &occupancy, layout);
+        Self::from_tables(width, height, tables, filter)
+    }
+
+    /// The map of `tables` (of a `width` × `height` map), its uniform value and mean read from
+    /// them.
+    ///
+    /// # Errors
+    /// [`DensityMapError::Empty`] when every texel is 0.
+    fn from_tables(
+        width: usize,
+        height: usize,
+        tables: Tables,
+        filter: MapFilter,
+    ) -> Result<Self, DensityMapError> {
         let total = tables.sums.at(width, height);
         if total == 0 {
             return Err(DensityMapError::Empty);
         }
         // No value changes between neighbours: every texel has the first one's value.
-        let uniform = (tables.changes.at(width, height) == 0).then(|| q(0, 0) as f64 / FIXED_ONE);
-        let mean = total as f64 / (FIXED_ONE * texels as f64);
+        let uniform = (tables.changes.at(width, height) == 0)
+            .then(|| tables.sums.cell(0, 0) as f64 / FIXED_ONE);
+        let mean = total as f64 / (FIXED_ONE * (width * height) as f64);
         Ok(Self {
             width,
             height,
@@ -394,21 +409,7 @@ impl DensityMap {
             return Err(DensityMapError::Empty);
         }
         let (width, height) = texels.size();
-        let tables = Tables::blocked(texels, level);
-        let total = tables.sums.at(width, height);
-        if total == 0 {
-            return Err(DensityMapError::Empty);
-        }
-        let uniform = (tables.changes.at(width, height) == 0)
-            .then(|| texels.fixed(level, 0, 0) as f64 / FIXED_ONE);
-        Ok(Self {
-            width,
-            height,
-            tables,
-            filter,
-            uniform,
-            mean: total as f64 / (FIXED_ONE * (width * height) as f64),
-        })
+        Self::from_tables(width, height, Tables::blocked(texels, level), filter)
     }
 
     /// The heap memory a `width` × `height` [`Self::roughness_level`] holds, in bytes: its
