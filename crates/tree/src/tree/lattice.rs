@@ -110,6 +110,8 @@ pub const MAX_GRID_CELLS: usize = 64;
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SlopeSquare {
     lo: DVec2,
+    /// The square's probability under p (0 where p vanishes at a Gauss point).
+    probability: f64,
     /// The cell's probability up to and with this square, over the cell's (the point's
     /// square is the first whose share exceeds a uniform draw).
     share_up_to: f64,
@@ -137,12 +139,51 @@ pub(crate) struct SlopeCell {
     probability: f64,
     /// Whether the cell lies inside the conic.
     inside: bool,
-    /// ν: the cell's share of its law inside the conic.
-    fraction: f64,
+    /// ν: the cell's share of its law inside the conic, once computed ([`SlopeCell::fraction`]).
+    fraction: Option<f64>,
     squares: [SlopeSquare; 4],
 }
 
+/// Which slope cells' fractions ν [`CountTree::slope_cells`] computes. A cut square's fraction
+/// integrates the log-linear model over 16 rows; a query the lattice answers alone needs it
+/// only for the cut cells that hold more than M particles, which the lattice's count asks
+/// for ([`SlopeCell::fraction`]), and the same arithmetic gives the same ν either way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Fractions {
+    /// Every cell's, and the conic's probability Σ P_c·ν_c: the band's blend is centred on λ.
+    Now,
+    /// Only those the count asks for.
+    WhenAsked,
+}
+
 impl SlopeCell {
+    /// ν, computed on first use: the cell's mass in the conic over its probability.
+    fn fraction(&mut self, ellipse: &SlopeEllipse, side: f64) -> f64 {
+        if let Some(fraction) = self.fraction {
+            return fraction;
+        }
+        let fraction = self.mass_in_conic(ellipse, side) / self.probability;
+        self.fraction = Some(fraction);
+        fraction
+    }
+
+    /// Σ P_k·ν_k over the cell's squares, in their order: P_k for a square inside the conic,
+    /// P_k times the log-linear model's mass in the ellipse for one it cuts ([`fraction_in_conic`];
+    /// fine squares of side `side`).
+    fn mass_in_conic(&self, ellipse: &SlopeEllipse, side: f64) -> f64 {
+        let mut mass = 0.0;
+        for square in &self.squares {
+            mass += match square.place {
+                Place::Outside => continue,
+                Place::Inside => square.probability,
+                Place::Cut => {
+                    square.probability * fraction_in_conic(ellipse, square.lo, side, &square.tilt)
+                }
+            };
+        }
+        mass
+    }
+
     /// The fine square a point's uniform draw `u` falls in.
     #[inline]
     fn square(&self, u: f64) -> &SlopeSquare {
@@ -196,14 +237,22 @@ pub(crate) struct LatticeScratch {
 /// What the lattice says of a query.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct LatticeAnswer {
-    /// λ, the expected count.
-    pub(super) expected: f64,
-    /// The weight t of the lattice's count, in (0, 1] (`None` stands for the tree alone).
-    pub(super) weight: f64,
     /// The lattice's count.
     pub(super) count: f64,
     /// The cells (square, slope cell) drawn.
     pub(super) cells: u32,
+    /// In the band, how the count blends with the tree's; `None` where the lattice answers
+    /// alone (t = 1).
+    pub(super) blend: Option<Blend>,
+}
+
+/// The band's blend of the lattice's count with the tree's (see the module docs).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Blend {
+    /// The weight t of the lattice's count, in (0, 1).
+    pub(super) weight: f64,
+    /// λ, the expected count, on which the blend is centred.
+    pub(super) expected: f64,
 }
 
 /// t: 0 below [`LATTICE_FROM`], 1 from [`LATTICE_ONLY`], smooth in ln λ̃ between.
@@ -254,17 +303,29 @@ impl CountTree {
             return None;
         }
         // Space first: a density map that varies over a square turns the query to the tree
-        // before the slope squares' fractions are paid for.
+        // before the slope squares' fractions are paid for. Alone, the lattice needs no λ.
         let spatial = self.space_cells(footprint, &mut scratch.spaces)?;
-        let directional = self.slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)?;
-        let expected = particles * spatial.mass * directional.in_conic;
+        let fractions = if weight < 1.0 {
+            Fractions::Now
+        } else {
+            Fractions::WhenAsked
+        };
+        let directional = self.slope_cells(
+            &ellipse,
+            &mut scratch.slopes,
+            &mut scratch.squares,
+            fractions,
+        )?;
         let (count, cells) =
             self.lattice_count(footprint, &ellipse, scratch, &spatial, directional.level);
-        Some(LatticeAnswer {
-            expected,
+        let blend = directional.in_conic.map(|in_conic| Blend {
             weight,
+            expected: particles * spatial.mass * in_conic,
+        });
+        Some(LatticeAnswer {
             count,
             cells,
+            blend,
         })
     }
 
@@ -273,11 +334,14 @@ impl CountTree {
     /// log-linear model of P22 holds (coarser if that gives more than [`MAX_GRID_CELLS`]).
     /// The level returned is the fine squares'. Each square's probability and log-linear law
     /// come from `memo` where an earlier query computed them (they depend on the square only).
+    /// The cells' fractions ν and the conic's probability are computed now or when asked,
+    /// as `fractions` says.
     fn slope_cells(
         &self,
         ellipse: &SlopeEllipse,
         cells: &mut Vec<SlopeCell>,
         memo: &mut SquareMemo,
+        fractions: Fractions,
     ) -> Option<DirectionalGrid> {
         // √(area): the side of a square of the ellipse's area (its diameter's 0.89 for a
         // circle), so that an elongated ellipse meets a few squares along its length instead
@@ -317,7 +381,7 @@ impl CountTree {
         let side = side_at(level);
         let (lo, hi, _) = grid(level);
         cells.clear();
-        let mut in_conic = 0.0;
+        let mut in_conic = (fractions == Fractions::Now).then_some(0.0);
         // The 2 × 2 Gauss–Legendre points of a square, at ±1/(2√3) of its side from the centre.
         let gauss = 0.5 / 3f64.sqrt();
         let step = 2.0 * gauss * side;
@@ -337,11 +401,12 @@ impl CountTree {
                 }
                 let mut squares = [SlopeSquare {
                     lo: DVec2::ZERO,
+                    probability: 0.0,
                     share_up_to: 0.0,
                     tilt: Tilt::new(DVec2::ZERO),
                     place: Place::Outside,
                 }; 4];
-                let (mut probability, mut inside_mass) = (0.0, 0.0);
+                let mut probability = 0.0;
                 let mut probabilities = [0.0; 4];
                 for (k, square) in squares.iter_mut().enumerate() {
                     let square_lo = square_lo(k);
@@ -370,6 +435,7 @@ impl CountTree {
                         continue;
                     }
                     probabilities[k] = law.probability;
+                    square.probability = law.probability;
                     probability += probabilities[k];
                     if !meets[k] {
                         continue;
@@ -377,14 +443,11 @@ impl CountTree {
                     // A Gauss point where p vanishes (a density of bounded support): the tree
                     // answers rather than lose the square.
                     square.tilt = law.tilt?;
-                    let fraction = if ellipse.holds_square(square_lo, side) {
-                        square.place = Place::Inside;
-                        1.0
+                    square.place = if ellipse.holds_square(square_lo, side) {
+                        Place::Inside
                     } else {
-                        square.place = Place::Cut;
-                        fraction_in_conic(ellipse, square_lo, side, &square.tilt)
+                        Place::Cut
                     };
-                    inside_mass += probabilities[k] * fraction;
                 }
                 if !(probability > 0.0) {
                     continue;
@@ -399,14 +462,19 @@ impl CountTree {
                 if let Some(last) = probabilities.iter().rposition(|&p| p > 0.0) {
                     squares[last].share_up_to = f64::INFINITY;
                 }
-                in_conic += inside_mass;
-                cells.push(SlopeCell {
+                let mut cell = SlopeCell {
                     index: [cx, cy],
                     probability,
                     inside: squares.iter().all(|square| square.place == Place::Inside),
-                    fraction: inside_mass / probability,
+                    fraction: None,
                     squares,
-                });
+                };
+                if let Some(in_conic) = &mut in_conic {
+                    let mass = cell.mass_in_conic(ellipse, side);
+                    *in_conic += mass;
+                    cell.fraction = Some(mass / probability);
+                }
+                cells.push(cell);
             }
         }
         Some(DirectionalGrid { level, in_conic })
@@ -496,7 +564,7 @@ impl CountTree {
         &self,
         footprint: &Footprint,
         ellipse: &SlopeEllipse,
-        scratch: &LatticeScratch,
+        scratch: &mut LatticeScratch,
         spatial: &SpatialGrid,
         directional_level: i32,
     ) -> (f64, u32) {
@@ -513,7 +581,7 @@ impl CountTree {
             let space_key =
                 mix64(mix64(mix64(seed ^ spatial_level as u64) ^ space.index[0]) ^ space.index[1]);
             let space_inside = space.overlap.partial == 0;
-            for slope in &scratch.slopes {
+            for slope in &mut scratch.slopes {
                 // The cell's key: the square's, then the slope cell's level and indices.
                 let cell_key = mix64(
                     mix64(mix64(space_key ^ cell_level as i64 as u64) ^ slope.index[0] as u64)
@@ -563,7 +631,7 @@ impl CountTree {
                     count += found;
                 } else {
                     let n = particles as f64;
-                    let share = space.multiplicity * slope.fraction;
+                    let share = space.multiplicity * slope.fraction(ellipse, slope_side);
                     count += (n / m).sqrt() * found + (n - (n * m).sqrt()) * share;
                 }
             }
@@ -625,10 +693,11 @@ fn poisson(mean: f64, rng: &mut PointStream) -> u64 {
     (mean + mean.sqrt() * normal + 0.5).floor().max(0.0) as u64
 }
 
-/// The level and the conic's probability Σ P_c·ν_c of the slope squares.
+/// The level and the conic's probability Σ P_c·ν_c of the slope squares (where computed:
+/// [`Fractions::Now`]).
 struct DirectionalGrid {
     level: i32,
-    in_conic: f64,
+    in_conic: Option<f64>,
 }
 
 /// The level and the footprint's mass ∫ m(x)·d(x) dx over the squares.
@@ -740,6 +809,7 @@ mod tests {
                         &ellipse,
                         &mut scratch.lattice.slopes,
                         &mut scratch.lattice.squares,
+                        Fractions::Now,
                     )
                     .expect("cells");
                 let space = tree
@@ -763,10 +833,10 @@ mod tests {
                     }
                 }
                 brute *= size.x * size.y / 1_440_000.0;
+                let in_conic = grid.in_conic.expect("computed now");
                 assert!(
-                    (grid.in_conic / brute - 1.0).abs() < 1e-2,
-                    "θ_h {theta_h}, γ {gamma}, side {side}: {} against {brute}",
-                    grid.in_conic
+                    (in_conic / brute - 1.0).abs() < 1e-2,
+                    "θ_h {theta_h}, γ {gamma}, side {side}: {in_conic} against {brute}"
                 );
                 checked += 1;
             }
@@ -796,15 +866,21 @@ mod tests {
             let footprint =
                 Footprint::new(uv, DVec2::new(1e-3, 0.0), DVec2::new(0.0, 1e-3)).expect("finite");
             let directional = tree
-                .slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)
+                .slope_cells(
+                    &ellipse,
+                    &mut scratch.slopes,
+                    &mut scratch.squares,
+                    Fractions::Now,
+                )
                 .expect("cells");
             let spatial = tree
                 .space_cells(&footprint, &mut scratch.spaces)
                 .expect("cells");
-            expected = tree.config.particles as f64 * spatial.mass * directional.in_conic;
+            let in_conic = directional.in_conic.expect("computed now");
+            expected = tree.config.particles as f64 * spatial.mass * in_conic;
             let level = directional.level;
             counts.push(
-                tree.lattice_count(&footprint, &ellipse, &scratch, &spatial, level)
+                tree.lattice_count(&footprint, &ellipse, &mut scratch, &spatial, level)
                     .0,
             );
         }
@@ -831,6 +907,73 @@ mod tests {
             (zeros - p0).abs() < error((p0 * (1.0 - p0) / n).sqrt()),
             "{zeros} against {p0}"
         );
+    }
+
+    /// A query the lattice answers alone computes a cell's fraction ν only where its count
+    /// asks for it (a cut cell of more than M particles): its counts are those of the cells
+    /// with every ν computed first, bit for bit, and ν is the same either way. Queries from
+    /// sparse (cells of a few particles) to dense (thousands), on and off the lobe's peak.
+    #[test]
+    fn fractions_computed_when_asked_give_the_same_counts() {
+        let mut asked = 0;
+        for particles in [1u64 << 24, 1 << 30, 1 << 36] {
+            let tree = lattice_tree(particles);
+            let (mut now, mut when_asked) = (LatticeScratch::default(), LatticeScratch::default());
+            let mut state = 11u64;
+            for i in 0..400 {
+                state = crate::node::mix64(state.wrapping_add(1));
+                let uv =
+                    DVec2::new((state >> 40) as f64, (state & 0xFF_FFFF) as f64) / 16_777_216.0;
+                let theta_h = 0.25 * f64::from(i % 5) / 4.0;
+                let (wi, wo) = directions_about(
+                    DVec3::new(theta_h, 0.3 * theta_h, 1.0),
+                    0.2 + 0.002 * f64::from(i),
+                );
+                let gamma = (1.0 + f64::from(i % 7)).to_radians();
+                let conic = SphericalConic::new(wi, wo, gamma).expect("valid");
+                let Some(ellipse) = SlopeEllipse::of(&conic) else {
+                    continue;
+                };
+                let side = 1e-3 * (1.0 + f64::from(i % 3));
+                let footprint = Footprint::new(
+                    uv,
+                    DVec2::new(side, 0.3 * side),
+                    DVec2::new(-0.2 * side, side),
+                )
+                .expect("finite");
+                let count = |scratch: &mut LatticeScratch, fractions: Fractions| {
+                    let directional = tree
+                        .slope_cells(
+                            &ellipse,
+                            &mut scratch.slopes,
+                            &mut scratch.squares,
+                            fractions,
+                        )
+                        .expect("cells");
+                    let spatial = tree
+                        .space_cells(&footprint, &mut scratch.spaces)
+                        .expect("cells");
+                    tree.lattice_count(&footprint, &ellipse, scratch, &spatial, directional.level)
+                };
+                let (a, b) = (
+                    count(&mut now, Fractions::Now),
+                    count(&mut when_asked, Fractions::WhenAsked),
+                );
+                assert_eq!(
+                    (a.0.to_bits(), a.1),
+                    (b.0.to_bits(), b.1),
+                    "query {i}, N = {particles}"
+                );
+                for (cell, lazy) in now.slopes.iter().zip(&when_asked.slopes) {
+                    if let Some(fraction) = lazy.fraction {
+                        assert_eq!(Some(fraction.to_bits()), cell.fraction.map(f64::to_bits));
+                        asked += 1;
+                    }
+                }
+            }
+        }
+        // Dense queries ask for some fractions (cut cells of more than M particles).
+        assert!(asked > 100, "{asked} fractions asked for");
     }
 
     /// A footprint whose bounding box spans more than a tile meets each wrapped square once:
@@ -870,13 +1013,19 @@ mod tests {
         let conic = SphericalConic::new(wi, wo, 6f64.to_radians()).expect("valid");
         let ellipse = SlopeEllipse::of(&conic).expect("an ellipse");
         let grid = tree
-            .slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)
+            .slope_cells(
+                &ellipse,
+                &mut scratch.slopes,
+                &mut scratch.squares,
+                Fractions::Now,
+            )
             .expect("cells");
         let side = side_at(grid.level);
         let mut rng = PointStream(99);
         let mut cut = 0;
         for cell in &scratch.slopes {
-            if cell.fraction <= 0.0 || cell.fraction >= 1.0 {
+            let fraction = cell.fraction.expect("computed now");
+            if fraction <= 0.0 || fraction >= 1.0 {
                 continue;
             }
             cut += 1;
@@ -893,11 +1042,10 @@ mod tests {
                 drawn[k] += 1;
             }
             let share = f64::from(inside) / f64::from(n);
-            let error = 4.0 * (cell.fraction * (1.0 - cell.fraction) / f64::from(n)).sqrt();
+            let error = 4.0 * (fraction * (1.0 - fraction) / f64::from(n)).sqrt();
             assert!(
-                (share - cell.fraction).abs() < error + 0.003 * cell.fraction,
-                "{share} against ν {}",
-                cell.fraction
+                (share - fraction).abs() < error + 0.003 * fraction,
+                "{share} against ν {fraction}"
             );
             let mut below = 0.0;
             for (k, square) in cell.squares.iter().enumerate() {
@@ -942,9 +1090,15 @@ mod tests {
                 let conic = SphericalConic::new(wi, wo, gamma).expect("valid");
                 let ellipse = SlopeEllipse::of(&conic).expect("an ellipse");
                 let grid = tree
-                    .slope_cells(&ellipse, &mut scratch.slopes, &mut scratch.squares)
+                    .slope_cells(
+                        &ellipse,
+                        &mut scratch.slopes,
+                        &mut scratch.squares,
+                        Fractions::Now,
+                    )
                     .expect("cells");
-                let ratio = tree.slope_density(ellipse.center) * ellipse.area / grid.in_conic;
+                let in_conic = grid.in_conic.expect("computed now");
+                let ratio = tree.slope_density(ellipse.center) * ellipse.area / in_conic;
                 let lowest = if theta_h <= 0.1 { 0.99 } else { 0.25 };
                 assert!(
                     (lowest..1.16).contains(&ratio),
@@ -982,19 +1136,18 @@ mod tests {
         let mut crossed = false;
         for i in 0..=700 {
             let gamma = (1.0 + 7.0 * f64::from(i) / 700.0).to_radians();
-            let weight = match answer(gamma, 2.2e-4).0 {
+            let weight = match answer(gamma, 2.2e-4).0.map(|a| a.blend) {
                 None => 0.0,
-                Some(a) => {
-                    if a.weight < 1.0 {
-                        let estimate = LATTICE_FROM
-                            * (LATTICE_ONLY / LATTICE_FROM).powf(inverse_weight(a.weight));
-                        assert!(
-                            (estimate / a.expected - 1.0).abs() < 0.25,
-                            "γ {gamma}: λ̃ {estimate}, λ {}",
-                            a.expected
-                        );
-                    }
-                    a.weight
+                Some(None) => 1.0,
+                Some(Some(blend)) => {
+                    let estimate = LATTICE_FROM
+                        * (LATTICE_ONLY / LATTICE_FROM).powf(inverse_weight(blend.weight));
+                    assert!(
+                        (estimate / blend.expected - 1.0).abs() < 0.25,
+                        "γ {gamma}: λ̃ {estimate}, λ {}",
+                        blend.expected
+                    );
+                    blend.weight
                 }
             };
             assert!((weight - last).abs() < 0.05, "γ {gamma}: {last} → {weight}");

@@ -120,13 +120,13 @@ impl CountTree {
             && let Some(lattice) = self.lattice_answer(footprint, conic, &mut scratch.lattice)
         {
             let cells = [lattice.cells; 2];
-            if lattice.weight >= 1.0 {
+            let Some(blend) = lattice.blend else {
                 return self.result(lattice.count, [0.0; 3], cells, false);
-            }
+            };
             // The band between the regimes: the two independent counts' deviations from λ,
             // weighed by 1 − t and t and rescaled to keep the variance (`super::lattice`).
             let tree = self.traverse(footprint, conic, scratch);
-            let (t, mean) = (lattice.weight, lattice.expected);
+            let (t, mean) = (blend.weight, blend.expected);
             let deviation = (1.0 - t) * (tree.count - mean) + t * (lattice.count - mean);
             let count = (mean + deviation / ((1.0 - t).powi(2) + t * t).sqrt()).max(0.0);
             let nodes = [tree.nodes_visited, tree.nodes_overlapping].map(|n| n + lattice.cells);
