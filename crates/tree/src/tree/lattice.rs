@@ -110,7 +110,8 @@ pub const MAX_GRID_CELLS: usize = 64;
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SlopeSquare {
     lo: DVec2,
-    /// The square's probability under p (0 where p vanishes at a Gauss point).
+    /// The square's probability under p (0 where the Gauss rule's mean of P22 is not
+    /// positive).
     probability: f64,
     /// The cell's probability up to and with this square, over the cell's (the point's
     /// square is the first whose share exceeds a uniform draw).
@@ -146,8 +147,9 @@ pub(crate) struct SlopeCell {
 
 /// Which slope cells' fractions ν [`CountTree::slope_cells`] computes. A cut square's fraction
 /// integrates the log-linear model over 16 rows; a query the lattice answers alone needs it
-/// only for the cut cells that hold more than M particles, which the lattice's count asks
-/// for ([`SlopeCell::fraction`]), and the same arithmetic gives the same ν either way.
+/// only for the cells of more than M particles that the query cuts (in slope or in space),
+/// which the lattice's count asks for ([`SlopeCell::fraction`]), and the same arithmetic
+/// gives the same ν either way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Fractions {
     /// Every cell's, and the conic's probability Σ P_c·ν_c: the band's blend is centred on λ.
@@ -157,7 +159,9 @@ enum Fractions {
 }
 
 impl SlopeCell {
-    /// ν, computed on first use: the cell's mass in the conic over its probability.
+    /// ν, computed on first use: the cell's mass in the conic over its probability. The
+    /// first call's `ellipse` and `side` (fine squares') must be those the cell was built
+    /// with, as every later call's: the value is cached.
     fn fraction(&mut self, ellipse: &SlopeEllipse, side: f64) -> f64 {
         if let Some(fraction) = self.fraction {
             return fraction;
