@@ -411,7 +411,6 @@ impl CountTree {
                     place: Place::Outside,
                 }; 4];
                 let mut probability = 0.0;
-                let mut probabilities = [0.0; 4];
                 for (k, square) in squares.iter_mut().enumerate() {
                     let square_lo = square_lo(k);
                     square.lo = square_lo;
@@ -438,9 +437,8 @@ impl CountTree {
                     if !law.positive {
                         continue;
                     }
-                    probabilities[k] = law.probability;
                     square.probability = law.probability;
-                    probability += probabilities[k];
+                    probability += square.probability;
                     if !meets[k] {
                         continue;
                     }
@@ -459,11 +457,11 @@ impl CountTree {
                 // Each square's share, cumulated; the last square with a share takes every
                 // draw past the others', whatever the rounding.
                 let mut cumulated = 0.0;
-                for (square, &p) in squares.iter_mut().zip(&probabilities) {
-                    cumulated += p;
+                for square in &mut squares {
+                    cumulated += square.probability;
                     square.share_up_to = cumulated / probability;
                 }
-                if let Some(last) = probabilities.iter().rposition(|&p| p > 0.0) {
+                if let Some(last) = squares.iter().rposition(|square| square.probability > 0.0) {
                     squares[last].share_up_to = f64::INFINITY;
                 }
                 let mut cell = SlopeCell {
