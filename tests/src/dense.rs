@@ -127,3 +127,103 @@ pub fn assert_deterministic_and_continuous(tree: &CountTree) {
         "a move of 10⁻⁶ width changed the counts by {moved_total} of {total}"
     );
 }
+
+/// The camera move of the coherence measures: a square footprint whose side shrinks by 3% a
+/// frame from 4·10⁻³ to 2.5·10⁻⁴ (92 frames, a dolly moving 16 times closer), over the
+/// statistics' conic.
+pub const DOLLY_FRAMES: usize = 92;
+
+/// The dolly's first side and its ratio from frame to frame.
+pub const DOLLY_START: f64 = 4e-3;
+/// See [`DOLLY_START`].
+pub const DOLLY_RATIO: f64 = 0.97;
+
+/// What a viewer sees of counts as the camera moves closer ([`dolly_coherence`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Coherence {
+    /// The correlation over positions of each frame's count with the next frame's.
+    pub frame_to_frame: Vec<f64>,
+    /// The correlation of a footprint's count with the count of the nested footprint of half
+    /// its side (23 frames later, 0.97²³ ≈ ½), for the frames that have one.
+    pub half_side: Vec<f64>,
+}
+
+impl Coherence {
+    /// The lowest frame-to-frame correlation.
+    #[must_use]
+    pub fn lowest_frame_to_frame(&self) -> f64 {
+        self.frame_to_frame
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The side of dolly frame `frame`.
+#[must_use]
+pub fn dolly_side(frame: usize) -> f64 {
+    DOLLY_START * DOLLY_RATIO.powi(frame as i32)
+}
+
+/// The frames between a dolly footprint and the nested one of (about) half its side.
+pub const HALF_SIDE_FRAMES: usize = 23;
+
+/// `tree`'s counts along the dolly (footprints centred on `positions` random points, `seed`):
+/// each frame's correlation with the next, and with the frame of half its side.
+#[must_use]
+pub fn dolly_coherence(tree: &CountTree, positions: usize, seed: u64) -> Coherence {
+    let (conic, _) = conic_and_moved();
+    let mut rng = SplitMix64::new(seed);
+    let centres: Vec<DVec2> = (0..positions)
+        .map(|_| DVec2::new(rng.uniform(), rng.uniform()))
+        .collect();
+    let mut scratch = QueryScratch::new();
+    let counts: Vec<Vec<f64>> = (0..DOLLY_FRAMES)
+        .map(|frame| {
+            let side = dolly_side(frame);
+            centres
+                .iter()
+                .map(|&uv| {
+                    let footprint =
+                        Footprint::new(uv, DVec2::new(side, 0.0), DVec2::new(0.0, side))
+                            .expect("finite");
+                    tree.query(&footprint, &conic, &mut scratch).count
+                })
+                .collect()
+        })
+        .collect();
+    Coherence {
+        frame_to_frame: counts
+            .windows(2)
+            .map(|w| correlation(&w[0], &w[1]))
+            .collect(),
+        half_side: (0..DOLLY_FRAMES - HALF_SIDE_FRAMES)
+            .map(|frame| correlation(&counts[frame], &counts[frame + HALF_SIDE_FRAMES]))
+            .collect(),
+    }
+}
+
+/// The correlation over `positions` random positions (`seed`) of a square footprint's count
+/// (side `side`, the statistics' conic) with the nested footprint of half its side about the
+/// same centre (exact counts: √(¼) = ½), and with the sum of the counts of its two halves
+/// (left and right; exact counts: 1, the same particles).
+#[must_use]
+pub fn nested_correlations(tree: &CountTree, side: f64, positions: usize, seed: u64) -> (f64, f64) {
+    let (conic, _) = conic_and_moved();
+    let mut rng = SplitMix64::new(seed);
+    let mut scratch = QueryScratch::new();
+    let mut count = |uv: DVec2, dx: f64, dy: f64| {
+        let footprint =
+            Footprint::new(uv, DVec2::new(dx, 0.0), DVec2::new(0.0, dy)).expect("finite");
+        tree.query(&footprint, &conic, &mut scratch).count
+    };
+    let (mut whole, mut half, mut halves) = (vec![], vec![], vec![]);
+    for _ in 0..positions {
+        let uv = DVec2::new(rng.uniform(), rng.uniform());
+        whole.push(count(uv, side, side));
+        half.push(count(uv, 0.5 * side, 0.5 * side));
+        let quarter = DVec2::new(0.25 * side, 0.0);
+        halves.push(count(uv - quarter, 0.5 * side, side) + count(uv + quarter, 0.5 * side, side));
+    }
+    (correlation(&whole, &half), correlation(&whole, &halves))
+}

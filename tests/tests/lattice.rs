@@ -3,11 +3,17 @@
 //! process drawn at the query's scale, a cost that does not depend on N, determinism and
 //! continuity, and the tree's answers wherever the lattice does not answer.
 
+use glam::{DVec2, DVec3};
+use glint_sphere::SphericalConic;
 use glint_tests::SplitMix64;
-use glint_tests::counts::{beckmann_density, highlight_query};
-use glint_tests::dense::{SIDE, assert_deterministic_and_continuous, dense_statistics};
+use glint_tests::counts::{beckmann_density, ggx_density, highlight_query};
+use glint_tests::dense::{
+    SIDE, assert_deterministic_and_continuous, dense_statistics, dolly_coherence,
+    nested_correlations,
+};
 use glint_tree::{
-    CountTree, CountTreeConfig, DenseCounts, MAX_GRID_CELLS, QueryScratch, TreeError,
+    CountTree, CountTreeConfig, DenseCounts, Footprint, MAX_GRID_CELLS, NormalDensity,
+    QueryScratch, TreeError,
 };
 
 /// The lattice regime (the default), named so that these tests keep testing it.
@@ -75,8 +81,9 @@ fn blended_counts_keep_the_exact_statistics() {
 }
 
 /// The lattice's cells depend on the query's size, not on N: from N = 10¹² to 10¹⁵ the
-/// highlight workload draws the same cells per query (reported as nodes visited), at most
-/// [`MAX_GRID_CELLS`]² each and about 11 on average.
+/// highlight workload reads the same cells per query (reported as nodes visited), at most
+/// 4 × [`MAX_GRID_CELLS`]² each (two grids and two slope levels in a blend) and about 26 on
+/// average.
 #[test]
 fn lattice_query_cost_does_not_depend_on_n() {
     let mut rng = SplitMix64::new(4242);
@@ -94,9 +101,27 @@ fn lattice_query_cost_does_not_depend_on_n() {
     let (at_1e12, at_1e15) = (nodes(1e12), nodes(1e15));
     assert_eq!(at_1e12, at_1e15);
     let largest = at_1e15.iter().max().copied().unwrap_or(0) as usize;
-    assert!(largest <= MAX_GRID_CELLS * MAX_GRID_CELLS, "{largest}");
+    assert!(largest <= 4 * MAX_GRID_CELLS * MAX_GRID_CELLS, "{largest}");
     let mean = at_1e15.iter().map(|&n| f64::from(n)).sum::<f64>() / at_1e15.len() as f64;
-    assert!(mean < 16.0, "{mean} cells per query");
+    assert!(mean < 40.0, "{mean} cells per query");
+}
+
+/// The camera moving 16 times closer (the footprint's side × 0.97 a frame, 92 frames) at
+/// N = 10¹², where the lattice answers every frame (about 110 to 29 000 particles a query):
+/// consecutive frames correlate at 0.9 or more (exact counts: 0.96–0.97; the tolerance is the
+/// issue's target less five standard errors of 300 positions, about 0.03) and no frame pops.
+/// A footprint correlates with the nested one of half its side within 0.15 of exact counts'
+/// ½ (the target's 0.1 and four standard errors of the difference, about 0.05), and with
+/// the sum of its two halves at 0.85 or more (exact counts: 1).
+#[test]
+fn lattice_counts_stay_coherent_as_the_camera_moves_closer() {
+    let tree = tree(1e12, LATTICE);
+    let coherence = dolly_coherence(&tree, 300, 7);
+    let lowest = coherence.lowest_frame_to_frame();
+    assert!(lowest > 0.87, "lowest frame-to-frame correlation {lowest}");
+    let (half, halves) = nested_correlations(&tree, SIDE, 1500, 9);
+    assert!((half - 0.5).abs() < 0.15, "half side: {half}");
+    assert!(halves > 0.85, "halves: {halves}");
 }
 
 /// The same query gives the same count whatever came before it, and a footprint moved by a
@@ -240,5 +265,71 @@ fn the_lattice_refuses_a_node_scale_outside_its_range() {
     assert_eq!(
         DenseCounts::from_name("lattice", Some(16.0)),
         Ok(DenseCounts::Lattice { node_scale: 16.0 })
+    );
+}
+
+/// The mean, over 20 particle sets, of the counts `dense` answers for the footprint of side
+/// 10⁻³ at (0.3, 0.4) and the conic of ω_i, ω_o and γ = 1°, against exact counts' mean.
+fn mean_counts(
+    density: &std::sync::Arc<NormalDensity>,
+    particles: f64,
+    wi: DVec3,
+    wo: DVec3,
+) -> [f64; 2] {
+    let footprint = Footprint::new(
+        DVec2::new(0.3, 0.4),
+        DVec2::new(1e-3, 0.0),
+        DVec2::new(0.0, 1e-3),
+    )
+    .expect("finite");
+    let conic = SphericalConic::new(wi, wo, 1f64.to_radians()).expect("valid conic");
+    let mut scratch = QueryScratch::new();
+    [LATTICE, DenseCounts::Exact].map(|dense| {
+        let total: f64 = (0..20)
+            .map(|seed| {
+                let config = CountTreeConfig {
+                    particles: particles as u64,
+                    seed,
+                    epsilon: if dense == LATTICE { 0.1 } else { 0.0 },
+                    dense,
+                    ..CountTreeConfig::default()
+                };
+                let tree = CountTree::new(config, density.clone()).expect("valid configuration");
+                tree.query(&footprint, &conic, &mut scratch).count
+            })
+            .sum();
+        total / 20.0
+    })
+}
+
+/// A lobe much narrower than the cone (polished flakes: α = 10⁻⁴, γ = 1°, ω_i = ω_o = n)
+/// reflects every particle of the footprint into the cone, 1000 at N = 10⁹. Its slope squares
+/// are 54 α across (the ellipse's size bounds them) and their Gauss points miss the lobe, so
+/// the lattice once answered 0; their model's weight hands such queries to the tree.
+#[test]
+fn a_lobe_narrower_than_the_cone_keeps_its_flakes() {
+    for density in [beckmann_density(1e-4, 1e-4), ggx_density(1e-4, 1e-4)] {
+        let [lattice, exact] = mean_counts(&density, 1e9, DVec3::Z, DVec3::Z);
+        assert!(
+            (lattice / exact - 1.0).abs() < 0.03,
+            "{lattice} against exact counts' {exact}"
+        );
+    }
+}
+
+/// In the mirror configuration at θ = 88° (Beckmann α = 0.03, N = 10¹², the cone reaching 89°),
+/// the conic's ellipse stretches about 30 α along the horizon; squares that size cannot hold
+/// the lobe's curvature, and the lattice once counted 2.5 times the exact counts' mean. Their
+/// model's weight hands the query to the tree, whose sampled nodes keep the mean within 1.5%
+/// (over 20 particle sets).
+#[test]
+fn grazing_mirror_queries_keep_the_exact_mean() {
+    let theta = 88f64.to_radians();
+    let wi = DVec3::new(theta.sin(), 0.0, theta.cos());
+    let wo = DVec3::new(-theta.sin(), 0.0, theta.cos());
+    let [lattice, exact] = mean_counts(&beckmann_density(0.03, 0.03), 1e12, wi, wo);
+    assert!(
+        (lattice / exact - 1.0).abs() < 0.015,
+        "{lattice} against exact counts' {exact}"
     );
 }

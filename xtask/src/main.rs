@@ -38,6 +38,8 @@ mod validate;
 #[cfg(feature = "full")]
 mod validate_brdf;
 #[cfg(feature = "full")]
+mod validate_coherence;
+#[cfg(feature = "full")]
 mod validate_counts;
 #[cfg(feature = "full")]
 mod validate_dense;

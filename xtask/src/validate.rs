@@ -132,6 +132,10 @@ pub(crate) fn run(quick: bool, out: &Path, only: Option<&str>) -> anyhow::Result
             Box::new(|r| crate::validate_dense::dense(quick, r)),
         ),
         (
+            "trade: coherence across scales",
+            Box::new(|r| crate::validate_coherence::coherence(quick, r)),
+        ),
+        (
             "trade: pdf quadrature",
             Box::new(|r| crate::validate_pdf::pdf_quadrature(quick, r)),
         ),

@@ -80,8 +80,9 @@ pub enum GlintDense {
     GLINT_DENSE_SAMPLED = 0,
     /// Every particle resolved (exact counts; the cost grows with N).
     GLINT_DENSE_EXACT = 1,
-    /// Queries expecting many particles are answered from a Poisson process drawn on a lattice
-    /// at their own scale: the exact counts' mean and correlations at a cost that does not grow
+    /// Queries expecting many particles are answered from the points below a threshold of a
+    /// Poisson process laid on cells: the exact counts' mean and correlations, nested across
+    /// footprint sizes (counts follow the camera moving closer), at a cost that does not grow
     /// with N; others as `GLINT_DENSE_SAMPLED`. The default.
     GLINT_DENSE_LATTICE = 2,
 }
@@ -120,7 +121,7 @@ pub enum GlintPdfQuadrature {
 /// | `alpha_x`, `alpha_y` | 0.1 | [1e-4, 1] |
 /// | `particles` | 1e6 | a whole number in [1, 2^53] |
 /// | `gamma_degrees` | 1 | [5.73e-5, 60] (1e-6 rad to 60 degrees) |
-/// | `epsilon` | 0.1 | [0, 1]: Eq. 10's early stop (0 = off) |
+/// | `epsilon` | 0.1 | [0, 1]: Eq. 10's early stop (0 = off; exact counts are 0 with `dense` = `GLINT_DENSE_EXACT`: the default dense mode still answers dense queries from the lattice) |
 /// | `seed` | 0 | any |
 /// | `fresnel` | `GLINT_FRESNEL_NONE` | a `GlintFresnel` |
 /// | `conductor_eta`, `conductor_k` | {1, 1, 1}, {0, 0, 0} | eta in [1e-3, 1e3], k in [0, 1e3] |
@@ -157,7 +158,8 @@ pub struct GlintMaterialParams {
     /// γ, the radius of the cone around the outgoing direction, in degrees.
     pub gamma_degrees: f64,
     /// ε of Eq. 10: a partly covered node whose expected error is below ε times the count so
-    /// far adds its expected share instead of splitting (0 = off).
+    /// far adds its expected share instead of splitting (0 = off). 0 alone is not exact
+    /// counting: exact counts are 0 with `dense` = `GLINT_DENSE_EXACT`.
     pub epsilon: f64,
     /// Which particle set.
     pub seed: u64,

@@ -99,12 +99,13 @@ pub enum DenseCounts {
         node_scale: f64,
     },
     /// A query expecting at least [`super::LATTICE_FROM`] particles (by an estimate made
-    /// before any cell) is answered, in part or
-    /// (from [`super::LATTICE_ONLY`]) whole, from a Poisson process drawn on a lattice at its
-    /// own scale (`super::lattice`): the exact counts' mean, dispersion and correlations at a
-    /// cost bounded by the lattice's cells, not by N. Elsewhere (fewer particles, coloured
-    /// materials, density maps varying at the query's scale, conics reaching the horizon) the
-    /// tree answers as with `Sampled { node_scale }`. The default.
+    /// before any cell) is answered, in part or (from [`super::LATTICE_ONLY`]) whole, from
+    /// the points below a threshold of a Poisson process laid on cells (`super::lattice`):
+    /// the exact counts' mean and dispersion, their correlations between queries of one size
+    /// and, to a factor of 0.9 or more, between nested footprints of sizes up to four times
+    /// apart in area (the camera moving closer), at a cost bounded by the points a query reads,
+    /// not by N. Elsewhere (fewer particles, coloured materials, conics reaching the horizon)
+    /// the tree answers as with `Sampled { node_scale }`. The default.
     Lattice {
         /// The largest node the tree answers from its sample where the lattice leaves a
         /// query to it, in widths of the query (0 < s ≤ 16), as in `Sampled`.

@@ -92,10 +92,43 @@ impl AxisTilt {
         } else if g > LARGE_TILT {
             1.0 + (u + (1.0 - u) * self.precomputed).ln() / g
         } else {
-            (u * self.precomputed).ln_1p() / g
+            ln_1p(u * self.precomputed) / g
         };
         t.clamp(0.0, 1.0)
     }
+}
+
+/// ln(1 + v) for v > −1, within about 10⁻¹² (relative) of `f64::ln_1p` at a third of its
+/// cost: 2·atanh(s) by its odd series, s = v/(2 + v) where |v| ≤ ¼ (|s| ≤ 0.143, terms to
+/// s¹³), else ln 2 times the exponent of 1 + v plus 2·atanh((m − 1)/(m + 1)) of its mantissa m
+/// taken in [1/√2, √2) (|s| ≤ 0.172, terms to s¹⁷). A point's slope takes two (the quantile
+/// of its cell's law on each axis); `f64::ln_1p` where 1 + v is not a normal double.
+#[inline]
+fn ln_1p(v: f64) -> f64 {
+    // 2·(s + s³/3 + … + s^(2k+1)/(2k+1)), in Horner form on s².
+    let atanh_twice = |s: f64, terms: usize| {
+        let s2 = s * s;
+        let mut sum = 1.0 / (2 * terms + 1) as f64;
+        for k in (0..terms).rev() {
+            sum = sum * s2 + 1.0 / (2 * k + 1) as f64;
+        }
+        2.0 * s * sum
+    };
+    if v.abs() <= 0.25 {
+        return atanh_twice(v / (2.0 + v), 6);
+    }
+    let x = 1.0 + v;
+    if !(x >= f64::MIN_POSITIVE && x.is_finite()) {
+        return v.ln_1p();
+    }
+    let bits = x.to_bits();
+    let mut exponent = ((bits >> 52) & 0x7FF) as i64 - 1023;
+    let mut m = f64::from_bits((bits & 0x000F_FFFF_FFFF_FFFF) | (1023 << 52));
+    if m > std::f64::consts::SQRT_2 {
+        m *= 0.5;
+        exponent += 1;
+    }
+    exponent as f64 * std::f64::consts::LN_2 + atanh_twice((m - 1.0) / (m + 1.0), 8)
 }
 
 /// The law on the unit square: one [`AxisTilt`] per axis.
@@ -178,6 +211,47 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The fast ln(1 + v) is `f64::ln_1p` within 2·10⁻¹² (relative) from v = −1 + 10⁻³⁰⁰ to
+    /// 10³⁰⁰, on both sides of its two forms' boundary.
+    #[test]
+    fn the_fast_logarithm_is_ln_1p() {
+        let close = |w: f64| {
+            let (fast, want) = (ln_1p(w), w.ln_1p());
+            assert!(
+                (fast - want).abs() <= 2e-12 * want.abs().max(f64::MIN_POSITIVE),
+                "{w}: {fast} against {want}"
+            );
+        };
+        let mut checked = 0;
+        // From 1e-300 to 1e300 by factors of 1.37, and the same distances above −1.
+        let mut v = 1e-300f64;
+        while v < 1e300 {
+            close(v);
+            if v < 1.0 {
+                close(-v);
+            }
+            // −1 + v is a double above −1 from v = 2⁻⁵³.
+            if v < 1.0 && v > 1.2e-16 {
+                close(-1.0 + v);
+            }
+            checked += 1;
+            v *= 1.37;
+        }
+        for w in [
+            0.25,
+            -0.25,
+            0.250_000_1,
+            -0.250_000_1,
+            0.0,
+            1.0,
+            3.0,
+            -0.999_999,
+        ] {
+            close(w);
+        }
+        assert!(checked > 4000, "{checked}");
     }
 
     /// F by `exp` less 1 (from |g| = 10⁻³) is F by `exp_m1` within 10⁻¹² at every t.
