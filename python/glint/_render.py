@@ -58,7 +58,7 @@ def render(scene, *, frame=None, pixel_bounds=None, resolution=None, spp=None, t
         # glint-tracer's MAX_SAMPLES_PER_PIXEL (the Sobol sequence's length).
         spp = _whole("spp", spp, 1, 2**16)
     if threads is not None:
-        threads = _whole("threads", threads, 1, 4096)
+        threads = _whole("threads", threads, 1, _glint.MAX_THREADS)
     image, stats = _glint.render_scene(path, frame, pixel_bounds, resolution, spp, threads,
                                        bool(smooth))
     return {"image": image, "stats": json.loads(stats)}

@@ -55,7 +55,7 @@ import uuid
 
 import numpy as np
 
-from . import __version__
+from . import __version__, _glint
 from ._render import render, write_exr, write_png
 
 try:
@@ -84,8 +84,8 @@ MAX_SPP = 1 << 16
 #: The largest image width or height, the tracer's.
 MAX_SIDE = 16384
 
-#: The most render threads per task, as ``glint.render``.
-MAX_THREADS = 4096
+#: The most render threads per task, as ``glint.render`` (glint's limit for every pool).
+MAX_THREADS = _glint.MAX_THREADS
 
 #: The most worker processes of a local cluster (one machine).
 MAX_LOCAL_WORKERS = 1024
@@ -563,8 +563,8 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
         default when none of ``client``, ``scheduler`` and ``workers`` is given: 2. At most
         one of the three may be given.
     threads : int, optional
-        Each task's render threads, 1..=4096 (default: the machine's cores shared among a local
-        cluster's workers; all of a remote worker's cores).
+        Each task's render threads, 1..=1024 (``MAX_THREADS``; default: the machine's cores
+        shared among a local cluster's workers; all of a remote worker's cores).
     overwrite : bool
         Render frames that are done too.
     retries : int

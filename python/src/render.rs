@@ -110,15 +110,14 @@ fn render_scene<'py>(
     };
     let pool = match threads {
         None => crate::process_pool()?,
-        Some(0) => return Err(PyValueError::new_err("threads must be at least 1")),
+        // At most MAX_THREADS, checked before any thread starts.
         Some(count) => std::sync::Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(count)
-                .thread_name(|i| format!("glint-render-{i}"))
-                .build()
-                .map_err(|e| {
-                    PyRuntimeError::new_err(format!("cannot start {count} render threads: {e}"))
-                })?,
+            glint_eval::batch::thread_pool(Some(count), |i| format!("glint-render-{i}")).map_err(
+                |e| match glint_eval::batch::thread_count(Some(count)) {
+                    Err(_) => PyValueError::new_err(e),
+                    Ok(_) => PyRuntimeError::new_err(e),
+                },
+            )?,
         ),
     };
     let thread_count = pool.current_num_threads();

@@ -30,7 +30,8 @@ MANY = settings(max_examples=200, deadline=None, derandomize=True, database=None
 
 
 #: Each integer argument: its valid range (None: no upper limit).
-RANGES = {"tile": (1, None), "spp": (1, 65536), "workers": (1, 1024), "threads": (1, 4096),
+RANGES = {"tile": (1, None), "spp": (1, 65536), "workers": (1, 1024),
+          "threads": (1, farm.MAX_THREADS),
           "retries": (0, None), "frames_in_flight": (1, None)}
 
 #: Values that are not ints, for any argument.
@@ -162,7 +163,7 @@ def fake_probe(monkeypatch, scene):
 @FAST
 @given(kwargs=st.fixed_dictionaries({}, optional={
     "tile": st.integers(1, 10**6), "spp": st.sampled_from([1, 2, 65536]),
-    "threads": st.integers(1, 4096), "retries": st.integers(0, 10**6),
+    "threads": st.integers(1, farm.MAX_THREADS), "retries": st.integers(0, 10**6),
     "frames_in_flight": st.integers(1, 10**6), "worker_timeout": st.floats(1e-3, 1e6) | st.none(),
     "resolution": st.tuples(st.integers(1, 16384), st.integers(1, 16384)),
     "workers": st.integers(1, 1024)}),
