@@ -238,6 +238,51 @@ fn write_png(
         .map_err(|e| python_error(&e))
 }
 
+/// Checks the camera of the scene file `scene` at every frame of `frames` (loaded with the
+/// overrides `resolution` and `spp`, as `render_scene` loads it, and kept for the renders that
+/// follow), as `cargo xtask render --frames` does before it renders any: keyframes valid alone
+/// may interpolate to a degenerate pose between them. `ValueError` names the first frame at
+/// fault (the tracer's message).
+#[pyfunction]
+#[pyo3(signature = (scene, frames, resolution, spp))]
+fn check_camera_frames(
+    py: Python<'_>,
+    scene: PathBuf,
+    frames: Vec<i64>,
+    resolution: Option<(u32, u32)>,
+    spp: Option<u32>,
+) -> PyResult<()> {
+    let options = RenderOptions {
+        samples_per_pixel: spp,
+        resolution,
+        ..RenderOptions::default()
+    };
+    let cached = take_cached_job(&scene, &options);
+    let loaded = py
+        .detach(|| match cached {
+            Some(loaded) => Ok(loaded),
+            None => LoadedJob::load(&scene, options),
+        })
+        .map_err(|e| python_error(&e))?;
+    let problem = frames.iter().find_map(|&frame| {
+        loaded
+            .job
+            .scene
+            .camera
+            .checked_pose(frame as f64)
+            .err()
+            .map(|problem| TracerError::Camera {
+                frame: frame as f64,
+                problem,
+            })
+    });
+    *LAST_JOB.lock().unwrap_or_else(PoisonError::into_inner) = Some(loaded);
+    match problem {
+        Some(error) => Err(python_error(&error)),
+        None => Ok(()),
+    }
+}
+
 /// Reads the image file `path` as glint-tracer reads a scene file's map (`density_texture`,
 /// `alpha_texture`, `tint_texture`), under the same limits: a PNG or OpenEXR file of at most
 /// `limits::MAX_IMAGE_FILE_BYTES`, its size checked from the header against
@@ -274,5 +319,6 @@ pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(write_exr, module)?)?;
     module.add_function(wrap_pyfunction!(write_png, module)?)?;
     module.add_function(wrap_pyfunction!(read_map_image, module)?)?;
+    module.add_function(wrap_pyfunction!(check_camera_frames, module)?)?;
     Ok(())
 }
