@@ -23,11 +23,11 @@ import numpy as np
 
 from ._glint import DISTRIBUTIONS, __version__
 from ._glint import Material as _NativeMaterial
-from ._render import render, write_exr, write_png
+from ._render import read_map_image, render, write_exr, write_png
 from .units import mesh_areas, particles_per_square
 
-__all__ = ["DISTRIBUTIONS", "Material", "__version__", "mesh_areas", "particles_per_square", "render",
-           "write_exr", "write_png"]
+__all__ = ["DISTRIBUTIONS", "Material", "__version__", "mesh_areas", "particles_per_square",
+           "read_map_image", "render", "write_exr", "write_png"]
 
 
 def _rows(name, value, width):

@@ -1,4 +1,5 @@
-"""Rendering scene files: ``glint.render``, ``glint.write_exr`` and ``glint.write_png``.
+"""Rendering scene files: ``glint.render``, ``glint.write_exr`` and ``glint.write_png``; and
+``glint.read_map_image``, which reads a map image as the tracer does.
 
 These run glint-tracer's render job, the one ``cargo xtask render`` runs, so a frame (or a
 crop of one, ``pixel_bounds``) rendered here is bit for bit the command line's. Scene files
@@ -57,7 +58,7 @@ def render(scene, *, frame=None, pixel_bounds=None, resolution=None, spp=None, t
         # glint-tracer's MAX_SAMPLES_PER_PIXEL (the Sobol sequence's length).
         spp = _whole("spp", spp, 1, 2**16)
     if threads is not None:
-        threads = _whole("threads", threads, 1, 4096)
+        threads = _whole("threads", threads, 1, _glint.MAX_THREADS)
     image, stats = _glint.render_scene(path, frame, pixel_bounds, resolution, spp, threads,
                                        bool(smooth))
     return {"image": image, "stats": json.loads(stats)}
@@ -91,3 +92,34 @@ def write_png(path, image, exposure=0.0, bloom=None):
     if not math.isfinite(exposure):
         raise ValueError(f"exposure must be finite, not {exposure}")
     _glint.write_png(os.fspath(path), _image(image), exposure, bloom)
+
+
+def read_map_image(path, kind="data"):
+    """Reads a map image as glint-tracer reads a scene file's ``density_texture``,
+    ``alpha_texture`` and ``tint_texture``, under the tracer's limits.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A PNG or OpenEXR file. Its size is checked from its header against the tracer's limits
+        (at most 16384 pixels wide and high, 2**26 pixels in all) before any pixel is decoded.
+    kind : {"data", "colour"}
+        ``"data"`` (density, roughness) reads a PNG's 8- and 16-bit values linearly, as k/255
+        and k/65535; ``"colour"`` (a tint) decodes them from sRGB. EXR values are linear
+        either way.
+
+    Returns
+    -------
+    numpy.ndarray
+        The texels, float64 of shape (height, width, 3), row 0 the image's top (a grey image
+        has three equal channels).
+
+    Raises
+    ------
+    ValueError
+        With the tracer's message: an unknown format, a file or image beyond the limits, a
+        damaged file, a texel that is not finite.
+    """
+    if kind not in ("data", "colour"):
+        raise ValueError(f'kind must be "data" or "colour", not {kind!r}')
+    return _glint.read_map_image(os.fspath(path), kind == "colour")

@@ -2,7 +2,7 @@
 
     python -m glint.farm SCENE --frames A..B --out DIR [--tile SIZE] [--spp N]
         [--resolution WxH] [--scheduler ADDRESS | --workers K] [--threads N] [--retries N]
-        [--worker-timeout SECONDS] [--overwrite] [--quiet]
+        [--worker-timeout SECONDS] [--connect-timeout SECONDS] [--overwrite] [--quiet]
 
 Each task renders one tile (``glint.render`` with ``pixel_bounds``) of one frame on a Dask
 worker. A tile's pixels are exactly the full frame's pixels there (each pixel's samples depend
@@ -28,11 +28,16 @@ stopped; ``--overwrite`` renders it again.
 
 Every task hashes the scene file and its assets before and after rendering its tile; a tile
 rendered from files other than the ones the run started with stops the run with
-``SceneChangedError`` before its frame is written. Tasks that raise are retried (``retries``);
-tasks on a worker that dies are run again on another (Dask's own rescheduling). Workers need
-the ``glint`` package (install the same wheel everywhere) and must see the scene file and its
-assets at the same path (a shared file system). See ``docs/farm.md`` in the repository for
-clusters (Slurm through dask-jobqueue).
+``SceneChangedError`` before its frame is written. Every frame's camera is checked before any
+is rendered, as ``cargo xtask render --frames`` does. A tile glint refuses (a ``ValueError``
+of the scene, an asset, the camera) is not retried: it would fail the same on any worker, and
+the run stops with glint's message alone. Tasks that raise otherwise are retried
+(``retries``); tasks on a worker that dies are run again on another (Dask's own
+rescheduling). Each option is given at most once; an unreachable ``--scheduler`` fails after
+``--connect-timeout`` seconds; Ctrl-C stops the run with status 130, its workers quietly.
+Workers need the ``glint`` package (install the same wheel everywhere) and must see the scene
+file and its assets at the same path (a shared file system). See ``docs/farm.md`` in the
+repository for clusters (Slurm through dask-jobqueue).
 
 From Python: ``glint.farm.render_frames(scene, frames, out, ...)`` returns the paths written.
 """
@@ -48,14 +53,16 @@ import json
 import math
 import os
 import re
+import signal
 import socket
 import sys
+import threading
 import time
 import uuid
 
 import numpy as np
 
-from . import __version__
+from . import __version__, _glint
 from ._render import render, write_exr, write_png
 
 try:
@@ -84,8 +91,8 @@ MAX_SPP = 1 << 16
 #: The largest image width or height, the tracer's.
 MAX_SIDE = 16384
 
-#: The most render threads per task, as ``glint.render``.
-MAX_THREADS = 4096
+#: The most render threads per task, as ``glint.render`` (glint's limit for every pool).
+MAX_THREADS = _glint.MAX_THREADS
 
 #: The most worker processes of a local cluster (one machine).
 MAX_LOCAL_WORKERS = 1024
@@ -116,6 +123,16 @@ def tiles(width, height, size):
             for y0 in range(0, height, size) for x0 in range(0, width, size)]
 
 
+class TileError:
+    """What a task returns instead of raising when glint refuses its tile (a ``ValueError`` of
+    ``glint.render``: the scene, an asset, the camera at the frame): such an error is a function
+    of the input and would be the same on any worker, so it is never retried, and the client
+    raises it as a ``ValueError`` with glint's message alone (no worker traceback)."""
+
+    def __init__(self, message):
+        self.message = message
+
+
 def render_tile(scene, frame, bounds, resolution, spp, threads, sources=None):
     """One task: the tile ``bounds`` of ``frame``.
 
@@ -123,11 +140,14 @@ def render_tile(scene, frame, bounds, resolution, spp, threads, sources=None):
     of ``sources`` (the files the client's run started with) taken before rendering, ``after``
     that of the files the render read (``stats["sources"]``) taken after it. Both equal the
     run's only if the files were the same throughout, unless they changed and changed back
-    in between.
+    in between. A tile glint refuses returns a ``TileError`` instead (never retried).
     """
     before = None if sources is None else sources_sha256(sources)
-    result = render(scene, frame=frame, pixel_bounds=bounds, resolution=resolution, spp=spp,
-                    threads=threads)
+    try:
+        result = render(scene, frame=frame, pixel_bounds=bounds, resolution=resolution, spp=spp,
+                        threads=threads)
+    except ValueError as error:
+        return TileError(str(error))
     after = sources_sha256(result["stats"]["sources"])
     return bounds, result["image"], result["stats"], before, after
 
@@ -480,7 +500,8 @@ def _frame_summary(frame, parts, identity, resolution, workers, outputs):
 
 
 def _checked_arguments(scene, frames, out, tile, spp, resolution, client, scheduler, workers,
-                       threads, retries, frames_in_flight, worker_timeout, on_tile):
+                       threads, retries, frames_in_flight, worker_timeout, on_tile,
+                       connect_timeout=5.0):
     """``render_frames``'s arguments checked and normalised; raises before anything starts."""
     def path(name, value):
         try:
@@ -525,15 +546,28 @@ def _checked_arguments(scene, frames, out, tile, spp, resolution, client, schedu
         worker_timeout = float(worker_timeout)
     if on_tile is not None and not callable(on_tile):
         raise TypeError(f"on_tile must be callable or None, not {on_tile!r}")
+    if connect_timeout is not None:
+        if isinstance(connect_timeout, (bool, np.bool_)) or not isinstance(
+                connect_timeout, (int, float, np.integer, np.floating)):
+            raise TypeError(f"connect_timeout must be seconds (a number), not "
+                            f"{connect_timeout!r}")
+        if not (math.isfinite(connect_timeout) and connect_timeout > 0):
+            raise ValueError(f"connect_timeout must be a positive number of seconds, not "
+                             f"{connect_timeout}")
+        connect_timeout = float(connect_timeout)
     if not os.path.isfile(scene):
         raise FileNotFoundError(f"scene file {scene!r} does not exist")
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise NotADirectoryError(f"out {out!r} is a file, not a folder: the frames are written "
+                                 "into a folder (give a folder's path, new or existing)")
     return (scene, frames, out, tile, spp, resolution, workers, threads, retries,
-            frames_in_flight, worker_timeout)
+            frames_in_flight, worker_timeout, connect_timeout)
 
 
 def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, client=None,
                   scheduler=None, workers=None, threads=None, overwrite=False, retries=3,
-                  frames_in_flight=None, worker_timeout=60.0, progress=True, on_tile=None):
+                  frames_in_flight=None, worker_timeout=60.0, progress=True, on_tile=None,
+                  connect_timeout=5.0):
     """Renders frames of a scene file on a Dask cluster, tile by tile, into a folder.
 
     Parameters
@@ -563,18 +597,22 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
         default when none of ``client``, ``scheduler`` and ``workers`` is given: 2. At most
         one of the three may be given.
     threads : int, optional
-        Each task's render threads, 1..=4096 (default: the machine's cores shared among a local
-        cluster's workers; all of a remote worker's cores).
+        Each task's render threads, 1..=1024 (``MAX_THREADS``; default: the machine's cores
+        shared among a local cluster's workers; all of a remote worker's cores).
     overwrite : bool
         Render frames that are done too.
     retries : int
-        How often a task that raises is run again, at least 0.
+        How often a task that raises is run again, at least 0. A tile glint refuses (the
+        scene, an asset, the camera at its frame) is never retried: the error is the same on
+        any worker.
     frames_in_flight : int, optional
         The most frames rendered at once, at least 1 (default: twice the workers, at least 2):
         the client holds that many frame buffers whatever the length of the animation.
     worker_timeout : float or None
         Seconds to wait for the cluster's first worker before raising ``TimeoutError``;
         None waits as long as it takes (a batch queue's workers may start hours later).
+    connect_timeout : float
+        Seconds to try to reach ``scheduler`` before raising ``OSError`` (5).
     progress : bool
         Print progress to stderr.
     on_tile : callable, optional
@@ -590,7 +628,11 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
     ------
     TypeError, ValueError
         An argument of the wrong type or out of range, named; a scene with ``pixel_bounds``;
-        a scheduler address that cannot be parsed. Raised before anything starts.
+        a scheduler address that cannot be parsed; a camera degenerate at one of the frames
+        (every frame is checked before any is rendered, as ``cargo xtask render --frames``
+        does); a tile glint refuses. Raised before anything starts, but for the last.
+    NotADirectoryError
+        ``out`` is a file.
     FileNotFoundError
         The scene file does not exist.
     FolderInUseError
@@ -606,11 +648,14 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
     from dask.distributed import Client, LocalCluster
 
     (scene, frames, out, tile, spp, resolution, workers, threads, retries, frames_in_flight,
-     worker_timeout) = _checked_arguments(scene, frames, out, tile, spp, resolution, client,
-                                          scheduler, workers, threads, retries,
-                                          frames_in_flight, worker_timeout, on_tile)
+     worker_timeout, connect_timeout) = _checked_arguments(
+        scene, frames, out, tile, spp, resolution, client, scheduler, workers, threads, retries,
+        frames_in_flight, worker_timeout, on_tile, connect_timeout)
     if not frames:
         return []
+    # The camera at every frame, before anything is created or rendered (as cargo xtask render
+    # --frames): keyframes valid alone may pass through a degenerate pose between them.
+    _glint.check_camera_frames(scene, frames, resolution, spp)
     os.makedirs(out, exist_ok=True)
     with _FolderLock(out):
         removed = _remove_dead_partials(out)
@@ -644,12 +689,13 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
             if scheduler is not None:
                 problem = None
                 try:
-                    client = Client(scheduler)
+                    client = Client(scheduler, timeout=connect_timeout)
                 except ValueError as error:
                     problem = ValueError(f"scheduler {scheduler!r} is not a Dask scheduler "
                                          f"address (tcp://HOST:PORT): {error}")
-                except OSError as error:
-                    problem = OSError(f"cannot reach the Dask scheduler at {scheduler!r}: "
+                except (OSError, TimeoutError, asyncio.TimeoutError) as error:
+                    problem = OSError(f"cannot reach the Dask scheduler at {scheduler!r} "
+                                      f"within {connect_timeout:g} s (--connect-timeout): "
                                       f"{error}")
                 if problem is not None:
                     # The Client that failed is left in reference cycles (its traceback's
@@ -662,8 +708,18 @@ def render_frames(scene, frames, out, *, tile=64, spp=None, resolution=None, cli
                 count = 2 if workers is None else workers
                 if threads is None:
                     threads = max(1, (os.cpu_count() or 1) // count)
-                cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                                       dashboard_address=None)
+                # The workers start with Ctrl-C ignored (an ignored signal stays ignored
+                # across exec, and Python then installs no KeyboardInterrupt handler): a
+                # terminal's Ctrl-C reaches the whole process group, and only this process
+                # should answer it, without a traceback from every worker.
+                ignoring = threading.current_thread() is threading.main_thread()
+                previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignoring else None
+                try:
+                    cluster = LocalCluster(n_workers=count, threads_per_worker=1,
+                                           processes=True, dashboard_address=None)
+                finally:
+                    if ignoring:
+                        signal.signal(signal.SIGINT, previous)
                 client = Client(cluster)
         try:
             return _render_on(client, scene, stem, todo, out, (width, height), identity,
@@ -717,7 +773,10 @@ def _render_on(client, scene, stem, todo, out, resolution, identity, sources, ti
         written = []
         for future in pending:
             f = futures.pop(future)
-            (x0, x1, y0, y1), image, stats, before, after = future.result()
+            result = future.result()
+            if isinstance(result, TileError):
+                raise ValueError(f"frame {f}: {result.message}")
+            (x0, x1, y0, y1), image, stats, before, after = result
             if not (before == after == identity["sources_sha256"]) or stats.get(
                     "resolution") != [width, height] or stats.get("spp") != samples:
                 raise SceneChangedError(
@@ -776,40 +835,67 @@ def _resolution(text):
         raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT") from None
 
 
+class _Once(argparse.Action):
+    """An option that may be given once: a second ``--frames`` (or any option) is an error,
+    not a silent override of the first."""
+
+    def __init__(self, option_strings, dest, flag=False, **kwargs):
+        if flag:
+            kwargs.update(nargs=0, default=False)
+        self.flag = flag
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault("_given", set())
+        if self.dest in given:
+            parser.error(f"{option_string} is given twice: give each option once")
+        given.add(self.dest)
+        setattr(namespace, self.dest, True if self.flag else values)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(
         prog="python -m glint.farm",
         description="Render frames of a glint scene file on a Dask cluster, tile by tile.")
+    parser.register("action", "once", _Once)
     parser.add_argument("scene", help="the scene file (TOML, scenes/README.md)")
-    parser.add_argument("--frames", type=_frames, default=(0, 0), metavar="A..B",
+    parser.add_argument("--frames", action="once", type=_frames, default=(0, 0), metavar="A..B",
                         help="camera frames A to B inclusive (default 0..0)")
-    parser.add_argument("--out", required=True,
+    parser.add_argument("--out", action="once", required=True,
                         help="output folder (one run at a time writes into it)")
-    parser.add_argument("--tile", type=int, default=64, help="tile side in pixels (64)")
-    parser.add_argument("--spp", type=int,
+    parser.add_argument("--tile", action="once", type=int, default=64,
+                        help="tile side in pixels (64)")
+    parser.add_argument("--spp", action="once", type=int,
                         help=f"samples per pixel, 1..={MAX_SPP} (default: the scene's)")
-    parser.add_argument("--resolution", type=_resolution, metavar="WxH",
+    parser.add_argument("--resolution", action="once", type=_resolution, metavar="WxH",
                         help="image size (default: the scene's)")
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--scheduler", metavar="ADDRESS",
+    where.add_argument("--scheduler", action="once", metavar="ADDRESS",
                        help="a running Dask scheduler, e.g. tcp://10.0.0.1:8786")
-    where.add_argument("--workers", type=int, metavar="K",
+    where.add_argument("--workers", action="once", type=int, metavar="K",
                        help="a local cluster of K worker processes (default 2)")
-    parser.add_argument("--threads", type=int,
-                        help="render threads per task (default: cores / local workers)")
-    parser.add_argument("--retries", type=int, default=3, help="retries of a failed task (3)")
-    parser.add_argument("--worker-timeout", type=float, default=60.0, metavar="SECONDS",
+    parser.add_argument("--threads", action="once", type=int,
+                        help=f"render threads per task, 1..={MAX_THREADS} (default: cores / "
+                             "local workers)")
+    parser.add_argument("--retries", action="once", type=int, default=3,
+                        help="retries of a failed task (3; a tile glint refuses is never "
+                             "retried)")
+    parser.add_argument("--worker-timeout", action="once", type=float, default=60.0,
+                        metavar="SECONDS",
                         help="how long to wait for the cluster's first worker (60)")
-    parser.add_argument("--overwrite", action="store_true",
+    parser.add_argument("--connect-timeout", action="once", type=float, default=5.0,
+                        metavar="SECONDS", help="how long to try to reach --scheduler (5)")
+    parser.add_argument("--overwrite", action="once", flag=True,
                         help="render frames whose outputs exist too")
-    parser.add_argument("--quiet", action="store_true", help="no progress")
+    parser.add_argument("--quiet", action="once", flag=True, help="no progress")
     args = parser.parse_args(argv)
     try:
         written = render_frames(args.scene, args.frames, args.out, tile=args.tile, spp=args.spp,
                                 resolution=args.resolution, scheduler=args.scheduler,
                                 workers=args.workers, threads=args.threads,
                                 overwrite=args.overwrite, retries=args.retries,
-                                worker_timeout=args.worker_timeout, progress=not args.quiet)
+                                worker_timeout=args.worker_timeout,
+                                connect_timeout=args.connect_timeout, progress=not args.quiet)
     except KeyboardInterrupt:
         print("\ninterrupted: frames written so far are kept; run again to render the rest",
               file=sys.stderr)

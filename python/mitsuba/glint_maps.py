@@ -21,10 +21,12 @@ What is accepted, per parameter:
   lookups put the image's values; the tint is nearest).
   Mitsuba pads an image smaller than 2 × 2 to 2 × 2 by repeating its last row or column,
   which is the same map.
-- a filename (a string): the image read as glint-tracer reads a scene file's
-  ``density_texture``, ``alpha_texture`` and ``tint_texture``: 8- and 16-bit values as k/255
-  and k/65535, floating-point ones as stored; density and roughness linearly, a tint decoded
-  from sRGB when the file is sRGB-encoded (8- and 16-bit PNG, JPEG). A relative path is
+- a filename (a string): a PNG or OpenEXR image read by glint-tracer's own reader
+  (``glint.read_map_image``), as it reads a scene file's ``density_texture``,
+  ``alpha_texture`` and ``tint_texture`` and under its limits (the size checked from the
+  file's header before any pixel is decoded, at most 16384 pixels wide and high and 2²⁶ in
+  all; every texel finite): 8- and 16-bit values as k/255 and k/65535, floating-point ones as
+  stored; density and roughness linearly, a PNG tint decoded from sRGB. A relative path is
   resolved as Mitsuba resolves a bitmap's filename (a scene file's folder first).
 
 Anything else (another texture type such as ``checkerboard``, a constant ``rgb`` or float,
@@ -43,13 +45,15 @@ an image then lies where glint-tracer puts the same image given as a scene file'
 
 Values: a density in [0, 1] (0 masks: no flake), a roughness in [1e-4, 1], a tint's channels
 in [0, 1]; a texel out of range, or not finite, is a ``ValueError`` naming the parameter and
-the texel (column, row), rows counted from the image's top.
+the texel (column, row), rows counted from the image's top, and values printed exactly.
 """
 
 import re
 
 import mitsuba as mi
 import numpy as np
+
+import glint
 
 #: The maps, and whether each is data (one channel, read linearly) or a colour.
 MAPS = {"density_map": "data", "alpha_map": "data", "tint_map": "colour"}
@@ -146,24 +150,24 @@ def _bitmap_texels(name, texture, kind):
 def _file_texels(name, filename, kind):
     path = mi.file_resolver().resolve(filename)
     try:
-        bitmap = mi.Bitmap(str(path))
-    except Exception as error:  # Mitsuba raises RuntimeError for any I/O or format error
+        texels = glint.read_map_image(str(path), "colour" if kind == "colour" else "data")
+    except ValueError as error:
         raise ValueError(f"glint.{name}: cannot read the image {filename!r}: {error}") from None
-    formats = mi.Bitmap.PixelFormat
-    channels = {formats.Y: 1, formats.YA: 1, formats.RGB: 3, formats.RGBA: 3}
-    if bitmap.pixel_format() not in channels:
-        raise ValueError(f"glint.{name}: the image {filename!r} is {bitmap.pixel_format()}; "
-                         "use a grey or RGB image")
-    pixels = np.array(bitmap)
-    if pixels.ndim == 2:
-        pixels = pixels[:, :, None]
-    pixels = pixels[:, :, :channels[bitmap.pixel_format()]]
-    if np.issubdtype(pixels.dtype, np.integer):
-        texels = pixels.astype(np.float64) / float(np.iinfo(pixels.dtype).max)
-        if kind == "colour" and bitmap.srgb_gamma():
-            texels = srgb_to_linear(texels)
-        return texels
-    return pixels.astype(np.float64)
+    return texels
+
+
+def shown(x):
+    """A number for a message, as glint-tracer writes one: exactly (the shortest decimal that
+    reads back as the same double: 1.0000001 is not 1), positional between 1e-4 and 1e6 and
+    scientific beyond (1e300, not 301 digits)."""
+    x = float(x)
+    if x == 0.0 or not np.isfinite(x) or 1e-4 <= abs(x) < 1e6:
+        text = repr(x)
+        if text.endswith(".0"):
+            text = text[:-2]
+        return {"nan": "NaN", "inf": "inf", "-inf": "-inf"}.get(text, text)
+    mantissa, exponent = np.format_float_scientific(x, unique=True, trim="-").split("e")
+    return f"{mantissa}e{int(exponent)}"
 
 
 def glint_map(name, texels, kind):
@@ -171,12 +175,16 @@ def glint_map(name, texels, kind):
     (H, W) for data, (H, W, 3) for a tint, rows bottom first; every texel checked, naming the
     parameter and the texel (column, row from the image's top)."""
     channels = texels.shape[2]
+    infinite = ~np.isfinite(texels)
+    if np.any(infinite):
+        row, column = np.argwhere(infinite)[0][:2]
+        raise ValueError(f"glint.{name}: texel (column {column}, row {row}) is not finite")
     if kind == "data":
         if channels == 3:
             differ = (texels[:, :, 0] != texels[:, :, 1]) | (texels[:, :, 1] != texels[:, :, 2])
             if np.any(differ):
                 row, column = np.argwhere(differ)[0]
-                c = ", ".join(f"{x:g}" for x in texels[row, column])
+                c = ", ".join(shown(x) for x in texels[row, column])
                 raise ValueError(f"glint.{name}: texel (column {column}, row {row}) has channels "
                                  f"({c}) that differ: the map is one channel of data (a grey "
                                  "image, or a colour one with equal channels)")
@@ -188,10 +196,10 @@ def glint_map(name, texels, kind):
     if np.any(bad):
         row, column = np.argwhere(bad)[0][:2]
         v = values[row, column]
-        shown = f"{v:g}" if np.ndim(v) == 0 else "(" + ", ".join(f"{x:g}" for x in v) + ")"
+        value = shown(v) if np.ndim(v) == 0 else "(" + ", ".join(shown(x) for x in v) + ")"
         what = "every channel must be" if kind == "colour" else "it must be"
-        raise ValueError(f"glint.{name}: texel (column {column}, row {row}) is {shown}: "
-                         f"{what} in [{low:g}, {high:g}]")
+        raise ValueError(f"glint.{name}: texel (column {column}, row {row}) is {value}: "
+                         f"{what} in [{shown(low)}, {shown(high)}]")
     if name == "density_map" and not np.any(values > 0):
         raise ValueError(f"glint.{name}: every texel is 0: the material would hold no particle")
     return np.ascontiguousarray(np.flipud(values))

@@ -502,5 +502,7 @@ fn _glint(module: &Bound<'_, PyModule>) -> PyResult<()> {
         .map(|kind| kind.name())
         .collect();
     module.add("DISTRIBUTIONS", PyTuple::new(module.py(), distributions)?)?;
+    // The most worker threads of any pool (glint_eval::batch::MAX_THREADS).
+    module.add("MAX_THREADS", glint_eval::batch::MAX_THREADS)?;
     Ok(())
 }

@@ -1,5 +1,5 @@
 //! Rendering scene files from Python (`glint.render`, `glint.write_exr`, `glint.write_png` in
-//! `glint/__init__.py`): glint-tracer's render job, the one `cargo xtask render` runs, so a
+//! `glint/__init__.py`), and reading map images as the tracer does (`glint.read_map_image`): glint-tracer's render job, the one `cargo xtask render` runs, so a
 //! frame or a crop rendered here is the command line's bit for bit. The GIL is released while
 //! a frame renders, and Ctrl-C stops it ([`crate::run_watched`]).
 
@@ -9,7 +9,7 @@ use std::sync::{Mutex, PoisonError};
 use std::time::SystemTime;
 
 use glam::DVec3;
-use glint_tracer::image::RgbImage;
+use glint_tracer::image::{PngValues, RgbImage};
 use glint_tracer::job::{RenderJob, RenderOptions, display_image};
 use glint_tracer::{Bloom, PixelBounds, RenderSettings, TracerError};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3};
@@ -110,15 +110,14 @@ fn render_scene<'py>(
     };
     let pool = match threads {
         None => crate::process_pool()?,
-        Some(0) => return Err(PyValueError::new_err("threads must be at least 1")),
+        // At most MAX_THREADS, checked before any thread starts.
         Some(count) => std::sync::Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(count)
-                .thread_name(|i| format!("glint-render-{i}"))
-                .build()
-                .map_err(|e| {
-                    PyRuntimeError::new_err(format!("cannot start {count} render threads: {e}"))
-                })?,
+            glint_eval::batch::thread_pool(Some(count), |i| format!("glint-render-{i}")).map_err(
+                |e| match glint_eval::batch::thread_count(Some(count)) {
+                    Err(_) => PyValueError::new_err(e),
+                    Ok(_) => PyRuntimeError::new_err(e),
+                },
+            )?,
         ),
     };
     let thread_count = pool.current_num_threads();
@@ -239,10 +238,87 @@ fn write_png(
         .map_err(|e| python_error(&e))
 }
 
+/// Checks the camera of the scene file `scene` at every frame of `frames` (loaded with the
+/// overrides `resolution` and `spp`, as `render_scene` loads it, and kept for the renders that
+/// follow), as `cargo xtask render --frames` does before it renders any: keyframes valid alone
+/// may interpolate to a degenerate pose between them. `ValueError` names the first frame at
+/// fault (the tracer's message).
+#[pyfunction]
+#[pyo3(signature = (scene, frames, resolution, spp))]
+fn check_camera_frames(
+    py: Python<'_>,
+    scene: PathBuf,
+    frames: Vec<i64>,
+    resolution: Option<(u32, u32)>,
+    spp: Option<u32>,
+) -> PyResult<()> {
+    let options = RenderOptions {
+        samples_per_pixel: spp,
+        resolution,
+        ..RenderOptions::default()
+    };
+    let cached = take_cached_job(&scene, &options);
+    let loaded = py
+        .detach(|| match cached {
+            Some(loaded) => Ok(loaded),
+            None => LoadedJob::load(&scene, options),
+        })
+        .map_err(|e| python_error(&e))?;
+    let problem = frames.iter().find_map(|&frame| {
+        loaded
+            .job
+            .scene
+            .camera
+            .checked_pose(frame as f64)
+            .err()
+            .map(|problem| TracerError::Camera {
+                frame: frame as f64,
+                problem,
+            })
+    });
+    *LAST_JOB.lock().unwrap_or_else(PoisonError::into_inner) = Some(loaded);
+    match problem {
+        Some(error) => Err(python_error(&error)),
+        None => Ok(()),
+    }
+}
+
+/// Reads the image file `path` as glint-tracer reads a scene file's map (`density_texture`,
+/// `alpha_texture`, `tint_texture`), under the same limits: a PNG or OpenEXR file of at most
+/// `limits::MAX_IMAGE_FILE_BYTES`, its size checked from the header against
+/// `limits::MAX_IMAGE_SIDE` and `limits::MAX_IMAGE_PIXELS` before its pixels are decoded, every
+/// pixel finite. A PNG's values are read linearly (k/255, k/65535) for data (`colour` false)
+/// and decoded from sRGB for a colour. The texels as (height, width, 3) float64, rows from the
+/// image's top; the tracer's message as `ValueError`.
+#[pyfunction]
+#[pyo3(signature = (path, colour))]
+fn read_map_image<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    colour: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let values = if colour {
+        PngValues::Srgb
+    } else {
+        PngValues::Linear
+    };
+    let image = py
+        .detach(|| RgbImage::load_as(&path, values))
+        .map_err(|e| python_error(&e))?;
+    let (width, height) = (image.width, image.height);
+    let flat: Vec<f64> = image.pixels.iter().flat_map(|p| p.to_array()).collect();
+    drop(image);
+    Ok(PyArray1::from_vec(py, flat)
+        .reshape([height, width, 3])?
+        .into_any())
+}
+
 /// Adds the rendering functions to the native module.
 pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(render_scene, module)?)?;
     module.add_function(wrap_pyfunction!(write_exr, module)?)?;
     module.add_function(wrap_pyfunction!(write_png, module)?)?;
+    module.add_function(wrap_pyfunction!(read_map_image, module)?)?;
+    module.add_function(wrap_pyfunction!(check_camera_frames, module)?)?;
     Ok(())
 }

@@ -176,3 +176,49 @@ def test_a_scene_edited_during_a_run_records_no_mixed_frame(tmp_path, cluster):
     scene.write_text(original)
     render_frames(scene, (0, 2), out, tile=24, client=cluster, threads=1, progress=False)
     _assert_frames_equal(out, _reference(tmp_path, scene, [0, 1, 2]), "floor", [0, 1, 2])
+
+
+def test_a_tile_glint_refuses_is_not_retried(tmp_path, cluster, monkeypatch, capfd):
+    """A tile the tracer refuses on a worker (here the camera at frame 2, with the client's
+    check of every frame switched off) stops the run with glint's message: no Dask retry, no
+    worker traceback."""
+    from test_farm_arguments import DEGENERATE_AT_2
+    import glint.farm as farm
+    scene = tmp_path / "through.toml"
+    scene.write_text(DEGENERATE_AT_2.format(spp=1))
+    monkeypatch.setattr(farm._glint, "check_camera_frames", lambda *args: None)
+    capfd.readouterr()
+    with pytest.raises(ValueError) as error:
+        # Frame 3 first: the client's one-pixel probe renders the first frame.
+        farm.render_frames(scene, [3, 2], tmp_path / "farm", client=cluster, tile=1000,
+                           frames_in_flight=1, progress=False)
+    assert str(error.value).startswith("frame 2: camera at frame 2"), str(error.value)
+    time.sleep(0.5)  # what the workers would log reaches the captured stderr
+    captured = capfd.readouterr()
+    assert "Traceback" not in captured.err and "Compute Failed" not in captured.err, \
+        captured.err[-2000:]
+
+
+def test_ctrl_c_stops_the_run_quietly(tmp_path):
+    """Ctrl-C at a terminal reaches the whole process group (the farm and its workers): the
+    run ends with status 130 and its message, no worker's KeyboardInterrupt traceback."""
+    scene = _scene(tmp_path, spp=256)
+    out = tmp_path / "farm"
+    command = [sys.executable, "-m", "glint.farm", str(scene), "--frames", "0..3", "--out",
+               str(out), "--tile", "24", "--workers", "1", "--threads", "1"]
+    run = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                           start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "floor_0000.json").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert (out / "floor_0000.json").exists()
+        os.killpg(run.pid, signal.SIGINT)
+        _, errors = run.communicate(timeout=60)
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+    assert run.returncode == 130, errors[-2000:]
+    assert "interrupted: frames written so far are kept" in errors
+    assert "Traceback" not in errors and "KeyboardInterrupt" not in errors, errors[-2000:]

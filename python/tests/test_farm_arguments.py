@@ -4,6 +4,7 @@ refused with a ValueError or TypeError naming it before any folder, lock or clus
 renders are the ones specified, in order, each once."""
 
 import itertools
+import math
 import os
 import re
 import socket
@@ -30,7 +31,8 @@ MANY = settings(max_examples=200, deadline=None, derandomize=True, database=None
 
 
 #: Each integer argument: its valid range (None: no upper limit).
-RANGES = {"tile": (1, None), "spp": (1, 65536), "workers": (1, 1024), "threads": (1, 4096),
+RANGES = {"tile": (1, None), "spp": (1, 65536), "workers": (1, 1024),
+          "threads": (1, farm.MAX_THREADS),
           "retries": (0, None), "frames_in_flight": (1, None)}
 
 #: Values that are not ints, for any argument.
@@ -162,7 +164,7 @@ def fake_probe(monkeypatch, scene):
 @FAST
 @given(kwargs=st.fixed_dictionaries({}, optional={
     "tile": st.integers(1, 10**6), "spp": st.sampled_from([1, 2, 65536]),
-    "threads": st.integers(1, 4096), "retries": st.integers(0, 10**6),
+    "threads": st.integers(1, farm.MAX_THREADS), "retries": st.integers(0, 10**6),
     "frames_in_flight": st.integers(1, 10**6), "worker_timeout": st.floats(1e-3, 1e6) | st.none(),
     "resolution": st.tuples(st.integers(1, 16384), st.integers(1, 16384)),
     "workers": st.integers(1, 1024)}),
@@ -236,3 +238,86 @@ def test_lock_holder_is_read_back(tmp_path):
     with lock:
         assert lock._holder() == (os.getpid(), socket.gethostname())
     assert not (tmp_path / farm.LOCK_NAME).exists()
+
+
+#: A camera path that is degenerate at frame 2 alone: the eye passes over the look-at point
+#: looking straight down, along the up vector.
+DEGENERATE_AT_2 = SCENE.replace('''[[camera.keyframes]]
+frame = 10
+position = [0.5, 1, 3]''', '''[[camera.keyframes]]
+frame = 4
+position = [0, 1, -3]''')
+
+
+def test_a_degenerate_frame_is_refused_before_any_frame_renders(tmp_path, no_cluster, capsys):
+    """Frames 0, 1 and 3 are valid and 2 is not: the run is refused before anything is created
+    or rendered (no cluster, no folder), as cargo xtask render --frames refuses, with the
+    tracer's message and no traceback."""
+    path = tmp_path / "through.toml"
+    path.write_text(DEGENERATE_AT_2.format(spp=1))
+    out = tmp_path / "out"
+    assert farm.main([str(path), "--frames", "0..3", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("error:") and "camera at frame 2" in error, error
+    assert "Traceback" not in error
+    assert not out.exists()
+    with pytest.raises(ValueError, match="camera at frame 2"):
+        farm.render_frames(path, [3, 2], out, progress=False)
+
+
+def test_a_tile_glint_refuses_is_returned_not_raised(tmp_path):
+    """On a worker, glint's refusal of a tile is a value (never retried by Dask, no worker
+    traceback), which the client raises with glint's message."""
+    path = tmp_path / "through.toml"
+    path.write_text(DEGENERATE_AT_2.format(spp=1))
+    result = farm.render_tile(str(path), 2, (0, 1, 0, 1), None, 1, 1)
+    assert isinstance(result, farm.TileError) and "camera at frame 2" in result.message
+    bounds, image, stats, before, after = farm.render_tile(str(path), 3, (0, 1, 0, 1), None, 1, 1)
+    assert bounds == (0, 1, 0, 1) and image.shape == (1, 1, 3)
+
+
+def test_out_naming_a_file_says_so(scene, tmp_path, no_cluster, capsys):
+    out = tmp_path / "frames.exr"
+    out.write_bytes(b"not a folder")
+    assert farm.main([str(scene), "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert f"error: out {str(out)!r} is a file, not a folder" in error, error
+    assert "Errno" not in error and "Traceback" not in error
+    with pytest.raises(NotADirectoryError, match="is a file, not a folder"):
+        farm.render_frames(scene, (0, 0), out, progress=False)
+
+
+@pytest.mark.parametrize("args", [["--frames", "0..1", "--frames", "2..3"],
+                                  ["--frames=0..1", "--frames", "0..1"],
+                                  ["--spp", "4", "--spp", "8"], ["--quiet", "--quiet"],
+                                  ["--scheduler", "tcp://a:1", "--scheduler", "tcp://b:1"]])
+def test_an_option_given_twice_is_refused(scene, tmp_path, no_cluster, capsys, args):
+    with pytest.raises(SystemExit) as exit:
+        farm.main([str(scene), "--out", str(tmp_path / "out"), *args])
+    assert exit.value.code == 2
+    error = capsys.readouterr().err
+    assert f"{args[-2].split('=')[0]} is given twice" in error, error
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unreachable_scheduler_fails_after_the_connect_timeout(scene, tmp_path, capsys):
+    """Nothing listens at the address: the run fails after --connect-timeout (1 s here), with a
+    message naming the address and the option, not after Dask's 30 s."""
+    import time
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    start = time.monotonic()
+    code = farm.main([str(scene), "--out", str(tmp_path / "out"), "--scheduler", address,
+                      "--connect-timeout", "1", "--quiet"])
+    elapsed = time.monotonic() - start
+    error = capsys.readouterr().err
+    assert code == 2, error
+    assert error.startswith(f"error: cannot reach the Dask scheduler at {address!r} within 1 s "
+                            "(--connect-timeout)"), error
+    assert elapsed < 20, elapsed
+    for bad in (0, -1.0, math.inf, math.nan):
+        with pytest.raises(ValueError, match="connect_timeout"):
+            farm.render_frames(scene, (0, 0), tmp_path / "out", scheduler=address,
+                               connect_timeout=bad, progress=False)

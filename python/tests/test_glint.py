@@ -480,3 +480,18 @@ def test_extreme_inputs_give_finite_answers_or_named_errors():
     assert r["error"][0] == "" and np.isfinite(r["count"][0]) and r["count"][0] > 0
     assert r["error"][1] == "duv_dx must hold numbers within ±1e15, not [1e300, 0.0]"
     assert r["error"][2].startswith("duv_dx must hold numbers within ±1e15")
+
+
+def test_directions_near_the_horizon_give_finite_answers():
+    """ω_i = (0.6, −0.8, 1e-200), ω_o = (−0.6, 0.3, 1e-200) gave f_smooth NaN for every
+    distribution, and the GGX pdf at γ = 60° with ω_i 1e-300 above the horizon NaN (issue 64)."""
+    for distribution in glint.DISTRIBUTIONS:
+        m = glint.Material(distribution=distribution, alpha=0.2, particles=1e9,
+                           gamma_degrees=60.0)
+        for z in (1e-100, 1e-200, 1e-300):
+            r = m.eval([0.6, -0.8, z], [-0.6, 0.3, z], [0.3, 0.4], [1e-3, 0], [0, 1e-3])
+            assert r["error"] == "", r["error"]
+            for key in ("f_hat", "f_smooth", "count", "expected_count"):
+                assert np.isfinite(r[key]) and r[key] >= 0, (distribution, z, key, r[key])
+            pdf = m.pdf([0.6, -0.8, z], [-0.6, 0.3, 0.5])
+            assert np.isfinite(pdf) and pdf >= 0, (distribution, z, pdf)

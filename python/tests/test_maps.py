@@ -258,3 +258,36 @@ def test_random_maps_build_or_raise_value_errors_and_answer_finite():
         assert m.gray == (not coloured) and f.ndim == (2 if coloured else 1)
 
     check()
+
+
+def test_read_map_image_reads_as_the_tracer(tmp_path):
+    """glint.read_map_image: an 8-bit grey PNG as k/255 for data and sRGB-decoded for a colour,
+    three equal channels, rows from the top; a file beyond the tracer's limits refused from its
+    header with the tracer's message; an unknown kind refused naming the argument."""
+    import struct
+    import zlib
+
+    def png(path, width, height, rows):
+        def chunk(kind, data):
+            body = kind + data
+            return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+        header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+        data = zlib.compress(b"".join(b"\x00" + bytes(r) for r in rows))
+        path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", data)
+                         + chunk(b"IEND", b""))
+        return path
+
+    small = png(tmp_path / "small.png", 2, 2, [[0, 255], [128, 64]])
+    data = glint.read_map_image(small)
+    assert data.shape == (2, 2, 3) and data.dtype == np.float64
+    assert np.array_equal(data[:, :, 0], np.array([[0, 255], [128, 64]]) / 255.0)
+    assert np.array_equal(data[:, :, 0], data[:, :, 2])
+    colour = glint.read_map_image(small, "colour")
+    c = 128 / 255.0
+    assert colour[1, 0, 1] == ((c + 0.055) / 1.055) ** 2.4
+    liar = png(tmp_path / "liar.png", 60000, 60000, [])
+    with pytest.raises(ValueError, match="60000 × 60000 pixels: wider or higher than the limit "
+                                         "of 16384"):
+        glint.read_map_image(liar)
+    with pytest.raises(ValueError, match='kind must be "data" or "colour", not \'color\''):
+        glint.read_map_image(small, "color")

@@ -503,7 +503,9 @@ def _bitmap(array, **kw):
     ({"density_map": _bitmap([[1.0, 1.5], [0.0, 1.0]])},
      "glint.density_map: texel (column 1, row 0) is 1.5: it must be in [0, 1]"),
     ({"density_map": _bitmap([[1.0, 1.0], [0.0, math.nan]])},
-     "glint.density_map: texel (column 1, row 1) is nan"),
+     "glint.density_map: texel (column 1, row 1) is not finite"),
+    ({"density_map": _bitmap([[1.0000001, 1.0], [0.0, 1.0]])},
+     "glint.density_map: texel (column 0, row 0) is 1.0000001192092896: it must be in [0, 1]"),
     ({"alpha_map": _bitmap([[0.1, 0.2], [0.0, 0.3]])},
      "glint.alpha_map: texel (column 0, row 1) is 0: it must be in [0.0001, 1]"),
     ({"density_map": _bitmap([[0.0, 0.0], [0.0, 0.0]])},
@@ -519,8 +521,8 @@ def _bitmap(array, **kw):
     ({"density_map": {"type": "bitmap", "bitmap": mi.Bitmap(
         np.array([[[1, 1, 1], [2, 2, 3]]], dtype=np.uint8), mi.Bitmap.PixelFormat.RGB),
         "raw": True}},
-     "glint.density_map: texel (column 1, row 0) has channels (0.00784314, 0.00784314, "
-     "0.0117647) that differ"),
+     "glint.density_map: texel (column 1, row 0) has channels (0.00784313725490196, "
+     "0.00784313725490196, 0.011764705882352941) that differ"),
     ({"tint_map": _bitmap([[0.5, 2.0], [0.1, 0.2]])},
      "glint.tint_map: texel (column 1, row 0) is (2, 2, 2): every channel must be in [0, 1]"),
 ])
@@ -530,6 +532,82 @@ def test_bad_texels_are_refused_naming_the_parameter_and_texel(props, message):
     with pytest.raises(Exception) as error:
         mi.load_dict({"type": "glint", **props})
     assert "ValueError: " + message in str(error.value), str(error.value)
+
+
+def _png(path, width, height, bit_depth, colour_type, compressed=None):
+    """A PNG written by hand: its header says `width` × `height`, its image data are
+    `compressed` (zlib), or the zlib of nothing (a file of a few dozen bytes that declares any
+    size)."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    header = struct.pack(">IIBBBBB", width, height, bit_depth, colour_type, 0, 0, 0)
+    data = zlib.compress(b"", 9) if compressed is None else compressed
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", data)
+                     + chunk(b"IEND", b""))
+    return path
+
+
+def test_map_files_are_read_under_the_tracers_pixel_limit(tmp_path):
+    """A 16384² grey PNG (a few hundred kilobytes) is beyond the tracer's 2²⁶ pixels: refused
+    with the tracer's message, as a scene file's density_texture is (Mitsuba's own reader took
+    7.6 GB for it)."""
+    import zlib
+    mi.set_variant("scalar_rgb")
+    side = 16384
+    compressor = zlib.compressobj(6)
+    row = b"\x00" * (side + 1)  # filter type 0, then the row's grey bytes
+    data = b"".join(compressor.compress(row) for _ in range(side)) + compressor.flush()
+    path = _png(tmp_path / "huge.png", side, side, 8, 0, data)
+    assert path.stat().st_size < 1_000_000
+    with pytest.raises(Exception) as error:
+        mi.load_dict({"type": "glint", "density_map": str(path)})
+    assert ("ValueError: glint.density_map: cannot read the image" in str(error.value)
+            and "16384 × 16384 pixels: more than the limit of 67108864 pixels"
+            in str(error.value)), str(error.value)
+
+
+def test_a_map_files_size_is_checked_from_its_header(tmp_path):
+    """An 89-byte PNG declaring 60000² RGBA16 pixels is refused from its header, before any
+    pixel is allocated (Mitsuba's reader tried 28.8 GB and ended in std::bad_alloc)."""
+    mi.set_variant("scalar_rgb")
+    path = _png(tmp_path / "liar.png", 60000, 60000, 16, 6)
+    assert path.stat().st_size < 100
+    for name in ("density_map", "tint_map"):
+        with pytest.raises(Exception) as error:
+            mi.load_dict({"type": "glint", name: str(path)})
+        assert (f"ValueError: glint.{name}: cannot read the image" in str(error.value)
+                and "60000 × 60000 pixels: wider or higher than the limit of 16384"
+                in str(error.value)), str(error.value)
+
+
+def test_a_nan_texel_in_a_map_file_is_not_finite(tmp_path):
+    """The tracer's reader refuses a NaN texel in an EXR and says so ("is not finite"), where
+    the channels were compared and said to differ."""
+    mi.set_variant("scalar_rgb")
+    texels = np.ones((3, 4, 3), dtype=np.float32)
+    texels[2, 3] = np.nan
+    path = tmp_path / "nan.exr"
+    mi.Bitmap(texels, mi.Bitmap.PixelFormat.RGB).write(str(path))
+    with pytest.raises(Exception) as error:
+        mi.load_dict({"type": "glint", "density_map": str(path)})
+    assert "is not finite" in str(error.value) and "differ" not in str(error.value), \
+        str(error.value)
+
+
+def test_map_values_are_printed_exactly(tmp_path):
+    """A texel just above 1 in a file prints as the double it holds, not as 1."""
+    mi.set_variant("scalar_rgb")
+    path = tmp_path / "above.exr"
+    _grey(np.array([[1.0000001, 0.5], [0.5, 0.5]], dtype=np.float32)).write(str(path))
+    with pytest.raises(Exception) as error:
+        mi.load_dict({"type": "glint", "density_map": str(path)})
+    assert ("ValueError: glint.density_map: texel (column 0, row 0) is 1.0000001192092896: it "
+            "must be in [0, 1]") in str(error.value), str(error.value)
 
 
 @needs_llvm

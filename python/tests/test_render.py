@@ -133,6 +133,13 @@ def test_render_errors_name_the_problem(tmp_path):
         glint.render(scene, spp=0)
     with pytest.raises(ValueError, match="threads"):
         glint.render(scene, threads=0)
+    # glint's limit for every pool (xtask --threads and C too), refused before any thread starts.
+    assert glint._glint.MAX_THREADS == 1024
+    with pytest.raises(ValueError, match=r"threads = 4096 is outside \[1, 1024\]"):
+        glint.render(scene, threads=4096)
+    with pytest.raises(ValueError, match=r"threads = 1025: the number of threads must be in "
+                                         r"\[1, 1024\]"):
+        glint._glint.render_scene(str(scene), 0, None, None, None, 1025, False)
     with pytest.raises(FileNotFoundError):
         glint.render(tmp_path / "missing.toml")
     bad = tmp_path / "bad.toml"

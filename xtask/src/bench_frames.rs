@@ -115,9 +115,8 @@ fn measure(path: &Path, quick: bool) -> anyhow::Result<SceneCost> {
         .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
     let mut runs = Vec::new();
     for threads in thread_counts {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()?;
+        let pool = glint_eval::batch::thread_pool(Some(threads), |i| format!("glint-bench-{i}"))
+            .map_err(anyhow::Error::msg)?;
         let render = |scene: &Scene| -> anyhow::Result<RenderStatistics> {
             Ok(pool
                 .install(|| glint_tracer::render(scene, &settings, 0.0, &|_, _| {}))?

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use glint_tracer::PixelBounds;
 use glint_tracer::job::{RenderJob, RenderOptions};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -66,7 +66,7 @@ pub(crate) struct RenderArgs {
     /// window, the JSON's `pixel_bounds`).
     #[arg(long, value_name = "X0,X1,Y0,Y1", value_parser = parse_pixel_bounds)]
     pub(crate) pixel_bounds: Option<PixelBounds>,
-    /// Worker threads (default: all cores).
+    /// Worker threads, 1 to 1024 (`glint_eval::batch::MAX_THREADS`; default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
     /// No progress bar.
@@ -181,16 +181,14 @@ fn check_camera(
 
 pub(crate) fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let scene_path = args.scene.clone().unwrap_or_else(default_scene);
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if threads == 0 {
-        bail!("--threads must be at least 1");
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start the worker threads")?;
+    // At most MAX_THREADS, checked before any thread starts (glint_eval::batch::thread_pool).
+    let threads = args.threads.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(glint_eval::batch::MAX_THREADS)
+    });
+    let pool = glint_eval::batch::thread_pool(Some(threads), |i| format!("glint-render-{i}"))
+        .map_err(|e| anyhow::anyhow!("--{e}"))?;
     crate::assets::ensure()?;
     let options = RenderOptions {
         samples_per_pixel: args.spp,
@@ -339,6 +337,38 @@ mod tests {
 
     /// A range whose frames include a degenerate interpolated pose is refused before any frame
     /// is rendered, naming the frame.
+    /// `--threads` beyond glint_eval's MAX_THREADS is refused at once, before the scene is
+    /// read or any thread starts (4096 threads spent 7–25 s starting and then failed with
+    /// "Resource temporarily unavailable").
+    #[test]
+    fn too_many_threads_are_refused_before_anything_starts() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            args: RenderArgs,
+        }
+        for (threads, message) in [
+            (
+                "4096",
+                "--threads = 4096: the number of threads must be in [1, 1024]",
+            ),
+            (
+                "0",
+                "--threads = 0: the number of threads must be in [1, 1024]",
+            ),
+        ] {
+            let cli = <Cli as clap::Parser>::try_parse_from([
+                "render",
+                "no/such/scene.toml",
+                "--threads",
+                threads,
+            ])
+            .unwrap();
+            let error = run(&cli.args).unwrap_err().to_string();
+            assert_eq!(error, message);
+        }
+    }
+
     #[test]
     fn the_camera_is_checked_at_every_frame_first() {
         let scene = glint_tracer::scene_file::parse_scene(

@@ -927,13 +927,22 @@ impl DiscreteBrdf {
         // G = 1/(1 + Λ(ω_i) + Λ(ω_o)) (χ⁺ holds: ω_i·h = ω_o·h > 0 and both above the horizon).
         let distribution = layer.smooth.distribution();
         let one_plus_lambdas = 1.0 + distribution.lambda(wi) + distribution.lambda(wo);
-        let scale =
-            wi_dot_s / (one_plus_lambdas * area * self.cone_solid_angle * s.z * wi.z * wo.z);
+        let denominator = one_plus_lambdas * area * self.cone_solid_angle * s.z * wi.z * wo.z;
+        let scale = if one_plus_lambdas.is_finite() && denominator >= f64::MIN_POSITIVE {
+            wi_dot_s / denominator
+        } else {
+            // Near the horizon the denominator underflows (or a Λ overflows): the same factor
+            // from G/(4 cos θ_i cos θ_o), which stays finite, in an order that does not
+            // underflow (clamped where the true value exceeds the largest finite number).
+            let h = s / s.length();
+            let g_over_cosines = 4.0 * distribution.g_over_cosines(wi, wo, h);
+            ((wi_dot_s / s.z) * g_over_cosines / (area * self.cone_solid_angle)).min(f64::MAX)
+        };
         let fresnel = match layer.smooth.fresnel() {
             Fresnel::None => DVec3::ONE,
             fresnel => fresnel.evaluate(wi_dot_s / s.length()),
         };
-        fresnel * d_hat * scale
+        (fresnel * d_hat * scale).min(DVec3::splat(f64::MAX))
     }
 }
 

@@ -164,6 +164,10 @@ pub(crate) trait Model {
     /// Smith's Λ(ω) for a unit ω with ω_z > 0, off the normal.
     fn lambda(alpha: (f64, f64), w: DVec3) -> f64;
 
+    /// Λ(ω)·ω_z for a unit ω with ω_z > 0, off the normal: finite down to the horizon, where
+    /// Λ grows like 1/ω_z and overflows.
+    fn lambda_times_cos(alpha: (f64, f64), w: DVec3) -> f64;
+
     /// An upper bound on p(m) = D(m)(m·n) over the unit normals with tan²θ in
     /// [t_near, t_far] (t_near ≤ t_far, t_far may be +∞).
     fn particle_density_bound(alpha: (f64, f64), t_near: f64, t_far: f64) -> f64;
@@ -209,9 +213,16 @@ impl RadialLaw {
             // 1/(1 + a²) − 1/(1 + b²) = (b − a)(b + a)/((1 + a²)(1 + b²)).
             RadialLaw::Student => {
                 if b.is_infinite() {
-                    1.0 / (1.0 + a * a)
+                    return 1.0 / (1.0 + a * a);
+                }
+                let denominator = (1.0 + a * a) * (1.0 + b * b);
+                if denominator.is_finite() {
+                    (b - a) * (b + a) / denominator
                 } else {
-                    (b - a) * (b + a) / ((1.0 + a * a) * (1.0 + b * b))
+                    // Beyond a scaled slope of about 1e154 (grazing directions) the squares
+                    // overflow (∞/∞): the same product factor by factor, each finite.
+                    let (near, far) = (1.0 / (1.0 + a * a), 1.0 / (1.0 + b * b));
+                    (b - a) * near * (2.0 * ((0.5 * a + 0.5 * b) * far))
                 }
             }
         }
@@ -345,6 +356,38 @@ impl Microfacet {
         with_model!(self.kind, M => M::lambda(self.alpha(), w))
     }
 
+    /// Λ(ω)·ω_z for a unit direction ω above the horizon: finite down to the horizon, where Λ
+    /// grows like 1/ω_z (and overflows below about 1e-300).
+    #[must_use]
+    pub fn lambda_times_cos(&self, w: DVec3) -> f64 {
+        if w.z <= 0.0 || (w.x == 0.0 && w.y == 0.0) {
+            return 0.0;
+        }
+        with_model!(self.kind, M => M::lambda_times_cos(self.alpha(), w))
+    }
+
+    /// G(ω_i, ω_o, m)/(4 cos θ_i cos θ_o), the shadowing and cosine factor of Eq. 3, finite for
+    /// directions at any height above the horizon. Where 4 cos θ_i cos θ_o underflows or a Λ
+    /// overflows (heights below about 1e-150), the quotient G/(4 cos θ_i cos θ_o) is 0/0 (or
+    /// 1/0) term by term; it is then 1/(4(cos θ_i cos θ_o + (Λ_i cos θ_i) cos θ_o +
+    /// (Λ_o cos θ_o) cos θ_i)) with [`Microfacet::lambda_times_cos`], which stay finite
+    /// (clamped to the largest finite number where the true value exceeds it). Elsewhere it is
+    /// G/(4 cos θ_i cos θ_o) as written.
+    #[must_use]
+    pub fn g_over_cosines(&self, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
+        let g = self.g(wi, wo, m);
+        let cosines = 4.0 * wi.z * wo.z;
+        if g > 0.0 && cosines >= f64::MIN_POSITIVE {
+            return g / cosines;
+        }
+        if wi.dot(m) <= 0.0 || wo.dot(m) <= 0.0 || wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        let product =
+            wi.z * wo.z + self.lambda_times_cos(wi) * wo.z + self.lambda_times_cos(wo) * wi.z;
+        (0.25 / product).min(f64::MAX)
+    }
+
     /// G1(ω, m) = χ⁺(ω·m)/(1 + Λ(ω)).
     #[must_use]
     pub fn g1(&self, w: DVec3, m: DVec3) -> f64 {
@@ -389,7 +432,17 @@ impl Microfacet {
         if wi.z <= 0.0 {
             return 0.0;
         }
-        self.g1(wi, m) * wi.dot(m).max(0.0) * self.d(m) / wi.z
+        let g1 = self.g1(wi, m);
+        if g1 > 0.0 {
+            return g1 * wi.dot(m).max(0.0) * self.d(m) / wi.z;
+        }
+        if wi.dot(m) <= 0.0 {
+            return 0.0;
+        }
+        // Λ(ω_i) overflowed (ω_i within about 1e-300 of the horizon): G1/ω_i.z =
+        // 1/(ω_i.z + Λ(ω_i)ω_i.z).
+        let g1_over_cos = (1.0 / (wi.z + self.lambda_times_cos(wi))).min(f64::MAX);
+        (g1_over_cos * wi.dot(m) * self.d(m)).min(f64::MAX)
     }
 
     /// The table this distribution reads Λ from, if its kind tabulates Λ (Ashikhmin–Shirley:

@@ -1569,3 +1569,46 @@ fn batches_answer_as_glint_eval_row_by_row() {
     assert_eq!(status, GLINT_NULL_POINTER);
     assert_eq!(last_error(), "glint_eval_batch: `wi` is NULL");
 }
+
+/// Directions 1e-200 above the horizon (issue 64): `glint_eval_smooth` gave NaN for every
+/// distribution, and `glint_pdf` NaN for GGX with γ = 60° and ω_i 1e-300 above it.
+#[test]
+fn near_horizon_directions_give_finite_answers() {
+    for kind in DistributionKind::ALL {
+        for gamma_degrees in [1.0, 60.0] {
+            let handles = Handles::new(&GlintMaterialParams {
+                distribution: kind.code(),
+                alpha_x: 0.2,
+                alpha_y: 0.2,
+                gamma_degrees,
+                ..default_params()
+            });
+            for (wi, wo) in [
+                ([0.6, -0.8, 1e-200], [-0.6, 0.3, 1e-200]),
+                ([0.6, -0.8, 1e-300], [-0.6, 0.3, 0.5]),
+            ] {
+                let mut smooth = [f64::NAN; 3];
+                let mut pdf = f64::NAN;
+                // SAFETY: a live material, readable arrays, writable doubles.
+                let statuses = unsafe {
+                    [
+                        glint_eval_smooth(
+                            handles.material,
+                            wi.as_ptr(),
+                            wo.as_ptr(),
+                            smooth.as_mut_ptr(),
+                        ),
+                        glint_pdf(handles.material, wi.as_ptr(), wo.as_ptr(), &mut pdf),
+                    ]
+                };
+                assert_eq!(statuses, [GLINT_OK, GLINT_OK]);
+                assert!(
+                    smooth.iter().all(|f| f.is_finite() && *f >= 0.0)
+                        && pdf.is_finite()
+                        && pdf >= 0.0,
+                    "{kind}, γ = {gamma_degrees}°, {wi:?} {wo:?}: f = {smooth:?}, pdf = {pdf}"
+                );
+            }
+        }
+    }
+}

@@ -29,6 +29,62 @@ use rayon::prelude::*;
 /// queries, and that a task's run of neighbouring footprints reuses its memos.
 pub const MIN_ROWS_PER_TASK: usize = 256;
 
+/// The most worker threads any pool of glint may have (`cargo xtask render --threads`, the
+/// Python package's `threads`, the C API's pool under `RAYON_NUM_THREADS`): 1024, far more
+/// than the cores of one machine, few enough that a pool starts at once. Beyond it a request
+/// is refused before any thread is started (4096 threads took 7–25 s to start and then failed
+/// with "Resource temporarily unavailable").
+pub const MAX_THREADS: usize = 1024;
+
+/// The thread count of a pool: `requested`, else `RAYON_NUM_THREADS` when it is set to a
+/// number, else one per core (at most [`MAX_THREADS`]: a machine of more cores gets that
+/// many).
+///
+/// # Errors
+/// A requested count (or `RAYON_NUM_THREADS`) of 0 or above [`MAX_THREADS`], naming it.
+pub fn thread_count(requested: Option<usize>) -> Result<usize, String> {
+    let check = |count: usize, what: &str| {
+        if (1..=MAX_THREADS).contains(&count) {
+            Ok(count)
+        } else {
+            Err(format!(
+                "{what} = {count}: the number of threads must be in [1, {MAX_THREADS}]"
+            ))
+        }
+    };
+    if let Some(count) = requested {
+        return check(count, "threads");
+    }
+    if let Some(value) = std::env::var_os("RAYON_NUM_THREADS") {
+        // rayon's own reading: a positive number is the count; anything else is ignored.
+        if let Some(count) = value.to_str().and_then(|v| v.trim().parse::<usize>().ok())
+            && count > 0
+        {
+            return check(count, "RAYON_NUM_THREADS");
+        }
+    }
+    Ok(std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(MAX_THREADS))
+}
+
+/// A worker pool of [`thread_count`]`(requested)` threads named by `name`: where every pool of
+/// glint is built, so [`MAX_THREADS`] holds everywhere.
+///
+/// # Errors
+/// [`thread_count`]'s, or the operating system refusing the threads.
+pub fn thread_pool(
+    requested: Option<usize>,
+    name: impl Fn(usize) -> String + Send + Sync + 'static,
+) -> Result<rayon::ThreadPool, String> {
+    let count = thread_count(requested)?;
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(count)
+        .thread_name(name)
+        .build()
+        .map_err(|e| format!("cannot start {count} worker threads: {e}"))
+}
+
 /// Tasks per worker thread a batch is cut into at most (a few, so one slow run of rows does
 /// not leave the other threads idle at the end).
 const TASKS_PER_THREAD: usize = 4;
@@ -65,7 +121,8 @@ pub fn with_thread_scratch<R>(f: impl FnOnce(&mut QueryScratch) -> R) -> R {
 }
 
 /// The worker pool of this process for batches: built on first use (with rayon's default
-/// thread count, `RAYON_NUM_THREADS` or one per core), and built again in a forked child
+/// thread count, `RAYON_NUM_THREADS` or one per core, within [`MAX_THREADS`]:
+/// [`thread_count`]), and built again in a forked child
 /// (whose process id differs from the one that built it). A child cannot use its parent's
 /// pool: fork copies the pool's state but none of its threads, and a batch would wait for them
 /// forever. The parent's pool is leaked in the child, not dropped, since dropping it would
@@ -73,7 +130,7 @@ pub fn with_thread_scratch<R>(f: impl FnOnce(&mut QueryScratch) -> R) -> R {
 /// one pool per fork. Never rayon's global pool, which cannot be rebuilt.
 ///
 /// # Errors
-/// When the operating system refuses the threads.
+/// `RAYON_NUM_THREADS` beyond [`MAX_THREADS`], or the operating system refusing the threads.
 pub fn process_pool() -> Result<Arc<rayon::ThreadPool>, String> {
     static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
     let pid = std::process::id();
@@ -82,9 +139,7 @@ pub fn process_pool() -> Result<Arc<rayon::ThreadPool>, String> {
         Some((built_in, current)) if *built_in == pid => Ok(Arc::clone(current)),
         _ => {
             let built = Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .thread_name(|i| format!("glint-{i}"))
-                    .build()
+                thread_pool(None, |i| format!("glint-{i}"))
                     .map_err(|e| format!("cannot start glint's worker threads: {e}"))?,
             );
             if let Some(inherited) = pool.replace((pid, Arc::clone(&built))) {

@@ -225,3 +225,37 @@ fn the_negligible_test_is_on_by_default() {
         rows.len()
     );
 }
+
+/// A pool beyond `MAX_THREADS` is refused before any thread starts (`xtask render --threads
+/// 4096` spent 7–25 s starting threads and then failed with "Resource temporarily
+/// unavailable"); counts within [1, MAX_THREADS] are built.
+#[test]
+fn a_pool_beyond_max_threads_is_refused_before_it_starts() {
+    use glint_eval::batch::{MAX_THREADS, thread_count, thread_pool};
+    assert_eq!(MAX_THREADS, 1024);
+    for refused in [0, MAX_THREADS + 1, 4096, usize::MAX] {
+        let error = thread_pool(Some(refused), |i| format!("test-{i}")).unwrap_err();
+        assert_eq!(
+            error,
+            format!("threads = {refused}: the number of threads must be in [1, 1024]")
+        );
+        assert!(thread_count(Some(refused)).is_err());
+    }
+    let pool = thread_pool(Some(3), |i| format!("test-{i}")).unwrap();
+    assert_eq!(pool.current_num_threads(), 3);
+    assert_eq!(thread_count(Some(MAX_THREADS)), Ok(MAX_THREADS));
+    let default = thread_count(None).unwrap();
+    assert!((1..=MAX_THREADS).contains(&default));
+}
+
+/// A tidy test: `scenes/README.md`'s Limits table states the thread limit.
+#[test]
+fn the_scenes_readme_states_the_thread_limit() {
+    let readme = include_str!("../../../scenes/README.md");
+    let row = readme
+        .lines()
+        .find(|line| line.starts_with("| worker threads"))
+        .expect("a worker threads row in scenes/README.md's Limits");
+    let stated = format!("| 1–{} |", glint_eval::batch::MAX_THREADS);
+    assert!(row.contains(&stated), "{stated:?} is not in {row:?}");
+}

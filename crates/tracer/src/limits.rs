@@ -173,6 +173,72 @@ pub fn read_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>, String> {
 mod tests {
     use super::*;
 
+    /// 2ⁿ as `scenes/README.md` writes a power of two: "2²⁶".
+    fn power_of_two(value: u64) -> String {
+        assert!(value.is_power_of_two(), "{value}");
+        let digits = ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'];
+        let exponent: String = value
+            .trailing_zeros()
+            .to_string()
+            .chars()
+            .map(|d| digits[d.to_digit(10).unwrap() as usize])
+            .collect();
+        format!("2{exponent}")
+    }
+
+    /// The row of the Limits table of `scenes/README.md` whose first cell starts with `what`.
+    fn limits_row(what: &str) -> &'static str {
+        let readme = include_str!("../../../scenes/README.md");
+        let table = &readme[readme.find("\n## Limits").expect("a Limits section")..];
+        table
+            .lines()
+            .find(|line| line.starts_with(&format!("| {what}")))
+            .unwrap_or_else(|| panic!("no row \"{what}\" in scenes/README.md's Limits"))
+    }
+
+    /// A tidy test: the Limits table of `scenes/README.md` states the limits these constants
+    /// enforce (it said 2²⁴ and 2²⁶ pixels where the tracer read 2²⁶ and 2²⁷).
+    #[test]
+    fn the_scenes_readme_states_the_limits_the_tracer_enforces() {
+        let side = (MAX_IMAGE_PIXELS as f64).sqrt() as usize;
+        let image = limits_row("image file");
+        for stated in [
+            format!("{} MiB", MAX_IMAGE_FILE_BYTES >> 20),
+            format!("≤ {MAX_IMAGE_SIDE} pixels a side"),
+            format!(
+                "≤ {} pixels ({side} × {side})",
+                power_of_two(MAX_IMAGE_PIXELS as u64)
+            ),
+        ] {
+            assert!(image.contains(&stated), "{stated:?} is not in {image:?}");
+        }
+        let assets = limits_row("all assets of a scene");
+        for stated in [
+            format!("{} GiB read", MAX_SCENE_ASSET_BYTES >> 30),
+            format!("{} image pixels", power_of_two(MAX_SCENE_PIXELS as u64)),
+        ] {
+            assert!(assets.contains(&stated), "{stated:?} is not in {assets:?}");
+        }
+        let maps = limits_row("glint maps");
+        let stated = format!("≤ {} GiB of tables", glint_brdf::MAX_MAP_BYTES >> 30);
+        assert!(maps.contains(&stated), "{stated:?} is not in {maps:?}");
+        for (what, stated) in [
+            ("scene file", format!("{} MiB", MAX_SCENE_FILE_BYTES >> 20)),
+            ("OBJ file", format!("{} MiB", MAX_MESH_FILE_BYTES >> 20)),
+            (
+                "primitives",
+                format!("{} per scene", power_of_two(MAX_PRIMITIVES as u64)),
+            ),
+            (
+                "echoed input",
+                format!("{MAX_ECHO_CHARS} characters per quoted"),
+            ),
+        ] {
+            let row = limits_row(what);
+            assert!(row.contains(&stated), "{stated:?} is not in {row:?}");
+        }
+    }
+
     /// Quoted input is cut at MAX_ECHO_CHARS characters (not bytes: multi-byte characters are
     /// never split), with the full length noted; short input is unchanged.
     #[test]

@@ -94,7 +94,15 @@ impl Model for AshikhminShirley {
     fn d(alpha: (f64, f64), m: DVec3) -> f64 {
         let (e_x, e_y, c) = exponents(alpha);
         let (x2, y2) = ((m.x / m.z).powi(2), (m.y / m.z).powi(2));
-        c * log_phong((e_x, e_y), x2, y2).exp()
+        if (x2 + y2).is_finite() {
+            return c * log_phong((e_x, e_y), x2, y2).exp();
+        }
+        // Near the horizon the slopes overflow (∞·0 or ∞/∞ in `log_phong`): cos^{e(φ)}θ read
+        // from m itself, e(φ) = (e_x m_x² + e_y m_y²)/(m_x² + m_y²), ln cos θ = ln m_z − ½ ln|m|².
+        let (mx2, my2) = (m.x * m.x, m.y * m.y);
+        let e = (e_x * mx2 + e_y * my2) / (mx2 + my2);
+        let log_cos = m.z.ln() - 0.5 * m.length_squared().ln();
+        c * (e * log_cos).exp()
     }
 
     /// D reads H through the ratios H_x/H_z and H_y/H_z only.
@@ -106,6 +114,10 @@ impl Model for AshikhminShirley {
     /// From the table of [`smith`], built once per roughness.
     fn lambda(alpha: (f64, f64), w: DVec3) -> f64 {
         SmithTable::lambda_of(alpha, w)
+    }
+
+    fn lambda_times_cos(alpha: (f64, f64), w: DVec3) -> f64 {
+        SmithTable::lambda_times_cos_of(alpha, w)
     }
 
     fn smith_table(alpha: (f64, f64)) -> Option<Arc<SmithTable>> {

@@ -21,6 +21,10 @@ impl Model for Beckmann {
     fn d((alpha_x, alpha_y): (f64, f64), m: DVec3) -> f64 {
         let z2 = m.z * m.z;
         let slope2 = scaled_slope2((alpha_x, alpha_y), m);
+        if z2 * z2 < f64::MIN_POSITIVE {
+            // Near the horizon z⁴ underflows (0/0): e^(−s²)/z⁴ = e^(−s² − 4 ln z).
+            return (-slope2 - 4.0 * m.z.ln()).exp() / (std::f64::consts::PI * alpha_x * alpha_y);
+        }
         (-slope2).exp() / (std::f64::consts::PI * alpha_x * alpha_y * z2 * z2)
     }
 
@@ -38,6 +42,19 @@ impl Model for Beckmann {
         }
         let a = w.z / projected_squared.sqrt();
         0.5 * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * a * std::f64::consts::PI.sqrt())
+    }
+
+    /// Λ·z = p·(a(erf(a) − 1)/2 + e^(−a²)/(2√π)), a = z/p: Λ grows like 1/(2a√π) at the
+    /// horizon (and overflows), Λ·z tends to p/(2√π). Where a ≥ 1 (no overflow), Λ times z.
+    fn lambda_times_cos(alpha: (f64, f64), w: DVec3) -> f64 {
+        let projected_squared = (alpha.0 * w.x).powi(2) + (alpha.1 * w.y).powi(2);
+        if w.z * w.z >= projected_squared {
+            return Self::lambda(alpha, w) * w.z;
+        }
+        let projected = projected_squared.sqrt();
+        let a = w.z / projected;
+        projected
+            * (0.5 * a * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * std::f64::consts::PI.sqrt()))
     }
 
     /// P(t) = (1 + t)^{3/2} e^{−t/α_m²} / (π α_x α_y), whose logarithm's derivative

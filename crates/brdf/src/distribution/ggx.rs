@@ -20,6 +20,13 @@ impl Model for Ggx {
 
     fn d((alpha_x, alpha_y): (f64, f64), m: DVec3) -> f64 {
         let z2 = m.z * m.z;
+        if z2 * z2 < f64::MIN_POSITIVE {
+            // Near the horizon z⁴ underflows (and the slope overflows): the same D without
+            // them, z⁴(1 + s²/z²)² = (z² + q)², q = x²/α_x² + y²/α_y².
+            let q = (m.x / alpha_x).powi(2) + (m.y / alpha_y).powi(2);
+            let sum = z2 + q;
+            return 1.0 / (std::f64::consts::PI * alpha_x * alpha_y * sum * sum);
+        }
         let slope2 = scaled_slope2((alpha_x, alpha_y), m);
         let normalization = std::f64::consts::PI * alpha_x * alpha_y * z2 * z2;
         1.0 / (normalization * (1.0 + slope2) * (1.0 + slope2))
@@ -34,6 +41,13 @@ impl Model for Ggx {
     fn lambda((alpha_x, alpha_y): (f64, f64), w: DVec3) -> f64 {
         let projected_squared = (alpha_x * w.x).powi(2) + (alpha_y * w.y).powi(2);
         0.5 * ((1.0 + projected_squared / (w.z * w.z)).sqrt() - 1.0)
+    }
+
+    /// Λ·z = (√(z² + p²) − z)/2 = p²/(2(√(z² + p²) + z)), p² = (α_x x)² + (α_y y)²: no
+    /// cancellation, and finite down to the horizon (Λ itself grows like p/(2z)).
+    fn lambda_times_cos((alpha_x, alpha_y): (f64, f64), w: DVec3) -> f64 {
+        let projected_squared = (alpha_x * w.x).powi(2) + (alpha_y * w.y).powi(2);
+        0.5 * projected_squared / ((w.z * w.z + projected_squared).sqrt() + w.z)
     }
 
     /// P(t) = (1 + t)^{3/2} / (1 + t/α_m²)² / (π α_x α_y), whose logarithm's derivative

@@ -172,6 +172,18 @@ impl SmithTable {
         cached.unwrap_or_else(|| Self::of(alpha).lambda(w))
     }
 
+    /// [`SmithTable::lambda_times_cos`] from the table of roughness `alpha`, read as
+    /// [`SmithTable::lambda_of`] reads it.
+    pub(crate) fn lambda_times_cos_of(alpha: (f64, f64), w: DVec3) -> f64 {
+        let cached = LAST.with(|last| {
+            last.borrow()
+                .as_ref()
+                .filter(|table| table.alpha == alpha)
+                .map(|table| table.lambda_times_cos(w))
+        });
+        cached.unwrap_or_else(|| Self::of(alpha).lambda_times_cos(w))
+    }
+
     /// The table of roughness `alpha`, built on first use.
     pub(crate) fn of(alpha: (f64, f64)) -> Arc<Self> {
         let same = |table: &Arc<Self>| table.alpha == alpha;
@@ -258,6 +270,23 @@ impl SmithTable {
         if u >= 1.0 {
             return f64::INFINITY;
         }
+        (self.g_at(u, azimuth) / (1.0 - u)).max(0.0)
+    }
+
+    /// Λ(ω)·ω_z for a unit ω above the horizon, off the normal, finite down to the horizon:
+    /// with a = ω_z/p, p = √((α_x ω_x)² + (α_y ω_y)²), 1 − u = a/(1 + a), so
+    /// Λ·ω_z = G/(1 − u)·a·p = G·(1 + a)·p, without forming 1 − u (which is 0 where a is
+    /// below the rounding of 1 + a).
+    #[must_use]
+    pub fn lambda_times_cos(&self, w: DVec3) -> f64 {
+        let (u, azimuth) = coordinates(self.alpha, w);
+        let projected = (self.alpha.0 * w.x).hypot(self.alpha.1 * w.y);
+        let a = w.z / projected;
+        (self.g_at(u.min(1.0), azimuth) * (1.0 + a) * projected).max(0.0)
+    }
+
+    /// G = Λ·(1 − u) at (u, ϕ), u ≤ 1: Catmull–Rom along u on four rows, then along ϕ.
+    fn g_at(&self, u: f64, azimuth: f64) -> f64 {
         let row = |r: isize| -> f64 {
             // Even in φ_o about 0 and about π/2.
             let last = self.azimuth_nodes as isize - 1;
@@ -271,15 +300,14 @@ impl SmithTable {
             let start = r as usize * ROW;
             along_u(&self.values[start..start + ROW], u)
         };
-        let g = if self.azimuth_nodes == 1 {
+        if self.azimuth_nodes == 1 {
             row(0)
         } else {
             let y = azimuth / std::f64::consts::FRAC_PI_2 * (self.azimuth_nodes - 1) as f64;
             let i = (y.floor() as isize).clamp(0, self.azimuth_nodes as isize - 2);
             let f = y - i as f64;
             catmull_rom([row(i - 1), row(i), row(i + 1), row(i + 2)], f)
-        };
-        (g / (1.0 - u)).max(0.0)
+        }
     }
 
     /// The roughness (α_x, α_y).
