@@ -395,15 +395,16 @@ impl DensityMap {
         }
         let whole = whole.into_iter().map(WholeRuns::sum).sum::<u64>() as f64 / 4.0;
         // The cut cells' moments about their corners cancel where a piece is small against
-        // the cell (each edge's term is of the order of the cell, the sum of the piece's
-        // area), so their sum is kept only where its own error bound is within 2⁻²⁰ of the
-        // mass: bit for bit what it was wherever it was right. Elsewhere (footprints under
-        // about 10⁻³ texel, or near zeros of d) the cut cells are integrated again about a
-        // point of each piece ([`Self::cell_mass_about_piece`]), accurate and never negative.
+        // the cell (each edge's term is of the order of the cell, their sum of the piece's
+        // area). Their sum is kept where its error bound is within 2⁻³⁰ of the mass; else
+        // (footprints under a few hundredths of a texel, or near zeros of d) the cut cells
+        // are integrated again about a point of each piece ([`Self::cell_mass_about_piece`],
+        // accurate and never negative), and the first sum is still kept if it is within 2⁻³⁰
+        // of that: bit for bit what it was wherever it was right, and then ≥ 0 too.
         let cut = if error <= MOMENTS_ACCEPTED * (mass + whole) {
             mass
         } else {
-            let mut mass = 0.0;
+            let mut precise = 0.0;
             for row in lo.y as i64..hi.y as i64 {
                 let (y0, y1) = (row as f64 + 0.5, row as f64 + 1.5);
                 let strip = clip(&corners, |p| p.y - y0, |p| y1 - p.y);
@@ -416,19 +417,24 @@ impl DensityMap {
                     &met,
                 );
                 let edges = (met.start..inside.start).chain(inside.end..met.end);
-                mass += edges
+                precise += edges
                     .map(|column| self.cell_mass_about_piece(&strip, column, row))
                     .sum::<f64>();
             }
-            mass
+            if (mass - precise).abs() <= MOMENTS_ACCEPTED * (precise + whole) {
+                mass
+            } else {
+                precise
+            }
         };
         (cut + whole) / (FIXED_ONE * scale.x * scale.y)
     }
 }
 
-/// The largest error bound, relative to the mass, at which [`DensityMap::bilinear_mass_in`]
-/// keeps the cut cells' moments about their corners.
-const MOMENTS_ACCEPTED: f64 = 1.0 / (1u64 << 20) as f64;
+/// The largest error of the cut cells' moments about their corners, relative to the mass, at
+/// which [`DensityMap::bilinear_mass_in`] keeps their sum (bounded, or measured against the
+/// integral about each piece).
+const MOMENTS_ACCEPTED: f64 = 1.0 / (1u64 << 30) as f64;
 
 impl DensityMap {
     /// The four corners' values of cell (`column`, `row`), q00, q10, q01, q11 (texels
