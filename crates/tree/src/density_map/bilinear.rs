@@ -910,8 +910,9 @@ mod tests {
     /// The map [[1, 0]], bilinear: about the zero texel's centre (u = ¾) d is 2|u − ¾|, so a
     /// square of side s there holds s³/2. Its mass was a difference of the cut cells' moments
     /// about their corners, which cancel: −8.3·10⁻²⁰ for s = 10⁻⁹ (the expected count
-    /// −8.3·10⁻¹⁴ of issue 64), −s²/12 for any s below 10⁻⁸. Now within 10⁻⁹ of s³/2 for sides
-    /// 2⁻² to 2⁻⁴⁰ (whose corners are exact), and within the corners' own rounding for 10⁻⁹.
+    /// −8.3·10⁻¹⁴ of issue 64), about −s²/12 from s = 10⁻⁸ down. Now within 10⁻⁹ of s³/2 for
+    /// sides 2⁻² to 2⁻⁴⁰ (whose corners are exact), and within the corners' own rounding for
+    /// 10⁻⁹.
     #[test]
     fn a_tiny_footprint_on_the_zero_texel_of_a_one_zero_map_has_positive_mass() {
         let map = DensityMap::with_filter(2, 1, &[1.0, 0.0], MapFilter::Bilinear).unwrap();
