@@ -977,12 +977,17 @@ mod tests {
         fn bilinear_masses_are_never_negative_and_tiny_ones_are_the_integral(
             (w, h) in (1usize..=8, 1usize..=8),
             values in proptest::collection::vec(
-                proptest::prop_oneof![3 => proptest::strategy::Just(0.0), 1 => proptest::strategy::Just(1.0), 2 => 0.0..=1.0f64],
+                proptest::prop_oneof![
+                    3 => proptest::strategy::Just(0.0),
+                    1 => proptest::strategy::Just(1.0),
+                    2 => 0.0..=1.0f64,
+                ],
                 64,
             ),
             place in 0usize..3,
             (cell, nudge) in ((-8i64..24, -8i64..24), (-1.0..=1.0f64, -1.0..=1.0f64)),
-            (exponent, aspect, turn, skew) in (-12.0..=-1.0f64, 0.05..=1.0f64, 0.0..1.0f64, -0.4..=0.4f64),
+            (exponent, aspect, turn, skew) in
+                (-12.0..=-1.0f64, 0.05..=1.0f64, 0.0..1.0f64, -0.4..=0.4f64),
             aligned in proptest::bool::weighted(0.3),
         ) {
             let mut values = values[..w * h].to_vec();
@@ -998,7 +1003,11 @@ mod tests {
                 1 => at * texel,
                 _ => at / 8.0 + DVec2::new(0.3, 0.7) * texel,
             } + DVec2::new(nudge.0, nudge.1) * size;
-            let (sin, cos) = if aligned { (0.0, 1.0) } else { (std::f64::consts::TAU * turn).sin_cos() };
+            let (sin, cos) = if aligned {
+                (0.0, 1.0)
+            } else {
+                (std::f64::consts::TAU * turn).sin_cos()
+            };
             let dx = size * DVec2::new(cos, sin);
             let dy = size * aspect * DVec2::new(-sin + skew * cos, cos + skew * sin);
             let footprint = Footprint::new(uv, dx, dy).unwrap();
@@ -1011,7 +1020,7 @@ mod tests {
                 let (mut sum, mut largest) = (0.0, 0.0f64);
                 for i in 0..n {
                     for j in 0..n {
-                        let (s, t) = ((i as f64 + 0.5) / n as f64 - 0.5, (j as f64 + 0.5) / n as f64 - 0.5);
+                        let [s, t] = [i, j].map(|k| (k as f64 + 0.5) / n as f64 - 0.5);
                         let d = tents_about(&map, uv, s * dx + t * dy);
                         sum += d;
                         largest = largest.max(d);
@@ -1022,7 +1031,8 @@ mod tests {
                 let largest = largest + extent.max_element() / n as f64 * 4.0;
                 let coordinates = ((uv * scale).abs() + extent).max_element() + 1.0;
                 let perimeter = 2.0 * (dx.length() + dy.length());
-                let rounding = 32.0 * f64::EPSILON * coordinates / scale.min_element() * perimeter * largest;
+                let moved = 32.0 * f64::EPSILON * coordinates / scale.min_element();
+                let rounding = moved * perimeter * largest;
                 proptest::prop_assert!(
                     (mass - reference).abs() <= 1e-3 * reference + rounding,
                     "{w}x{h} at {uv} {dx} {dy}: {mass:e} against {reference:e} (± {rounding:e})"
