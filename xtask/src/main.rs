@@ -48,6 +48,8 @@ mod validate_footprints;
 #[cfg(feature = "full")]
 mod validate_light_cones;
 #[cfg(feature = "full")]
+mod validate_lobes;
+#[cfg(feature = "full")]
 mod validate_maps;
 #[cfg(feature = "full")]
 mod validate_pdf;

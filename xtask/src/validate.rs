@@ -136,6 +136,10 @@ pub(crate) fn run(quick: bool, out: &Path, only: Option<&str>) -> anyhow::Result
             Box::new(|r| crate::validate_coherence::coherence(quick, r)),
         ),
         (
+            "trade: the dense regime over (α, γ)",
+            Box::new(|r| crate::validate_lobes::lobes(quick, r)),
+        ),
+        (
             "trade: pdf quadrature",
             Box::new(|r| crate::validate_pdf::pdf_quadrature(quick, r)),
         ),
