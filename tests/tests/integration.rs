@@ -5,6 +5,7 @@
 mod brdf;
 mod dense;
 mod density_maps;
+mod doc_lists;
 mod footprints;
 mod lattice;
 mod light_cones;

@@ -17,7 +17,13 @@
 //!   bit for bit), and with α_x = α_y it treats them alike (a quarter turn too): the count
 //!   tree's law excess walks one octant or two on that promise;
 //! - Λ is Smith's for this D: (1 + Λ(ω)) cos θ = ∫ D(m) max(0, ω·m) dm;
-//! - [`Microfacet::sample_normal`] draws from p, and the particle density bound holds.
+//! - [`Microfacet::sample_normal`] draws from p, and the particle density bound holds;
+//! - its name is lowercase ASCII letters and `_` (scene files, eval, C and Python use it).
+//!
+//! Nothing else is asked of a kind: how α maps to its shape (D(n) = 1/(π α_x α_y) for the
+//! three kinds here) is its own, checked in its own file. Every loop over the table reads
+//! [`DistributionKind::ALL`]; the user docs' lists of names are checked against it by
+//! `tests/tests/doc_lists.rs`, which names the file to update.
 //!
 //! G1(ω, m) = χ⁺(ω·m)/(1 + Λ(ω)); G(ω_i, ω_o, m) is the height-correlated form
 //! χ⁺(ω_i·m)χ⁺(ω_o·m)/(1 + Λ(ω_i) + Λ(ω_o)) (Heitz 2014).
@@ -577,10 +583,16 @@ mod tests {
             );
         }
         assert_eq!(DistributionKind::from_name("Beckmann"), None);
-        assert_eq!(
-            DistributionKind::names(),
-            "beckmann, ggx, ashikhmin_shirley"
-        );
+        // The list errors name: every kind once, in the table's order.
+        let listed: Vec<String> = DistributionKind::names()
+            .split(", ")
+            .map(str::to_owned)
+            .collect();
+        let table: Vec<String> = DistributionKind::ALL
+            .iter()
+            .map(|kind| kind.name().to_owned())
+            .collect();
+        assert_eq!(listed, table);
     }
 
     /// The contract's symmetries, bit for bit: p is even in m_x and in m_y, and with
@@ -622,8 +634,6 @@ mod tests {
     fn known_values() {
         for kind in DistributionKind::ALL {
             let d = Microfacet::new(kind, 0.3, 0.1).unwrap();
-            // D(n) = 1/(π α_x α_y) for both.
-            assert!((d.d(DVec3::Z) - 1.0 / (std::f64::consts::PI * 0.03)).abs() < 1e-12);
             assert_eq!(d.lambda(DVec3::Z), 0.0);
             assert_eq!(d.d(DVec3::new(0.0, 0.6, -0.8)), 0.0);
         }

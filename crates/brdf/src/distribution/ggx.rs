@@ -87,3 +87,21 @@ impl Model for Ggx {
         DVec3::new(alpha_x * nh.x, alpha_y * nh.y, nh.z.max(1e-12)).normalize()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The roughness parameterization: D(n) = 1/(π α_x α_y), the peak of the lobe.
+    #[test]
+    fn d_at_the_normal_is_one_over_pi_alpha_x_alpha_y() {
+        for (alpha_x, alpha_y) in [(0.3, 0.1), (0.02, 0.02), (1.0, 0.5)] {
+            let peak = Ggx::d((alpha_x, alpha_y), DVec3::Z);
+            let expected = 1.0 / (std::f64::consts::PI * alpha_x * alpha_y);
+            assert!(
+                (peak - expected).abs() < 1e-12 * expected,
+                "{peak} against {expected}"
+            );
+        }
+    }
+}
