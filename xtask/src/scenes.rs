@@ -269,15 +269,7 @@ fn moving_closer(path: &Path, args: &ScenesArgs, previews: &Path) -> anyhow::Res
                 scene.reseed_glints_for_frame(&base, renders)?;
             }
             renders += 1;
-            let image = render(&scene, &settings, frame, &|_, _| {})?.image;
-            let reference = render(&smooth, &settings, frame, &|_, _| {})?.image;
-            let layer = image
-                .pixels
-                .iter()
-                .zip(&reference.pixels)
-                .map(|(a, b)| glint_tracer::light::luminance(*a - *b))
-                .collect();
-            Ok((image, layer))
+            glint_layer(&scene, &smooth, &settings, frame)
         };
         let mean_abs = |v: &mut dyn Iterator<Item = f64>| {
             let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x.abs(), n + 1));
@@ -316,6 +308,25 @@ fn moving_closer(path: &Path, args: &ScenesArgs, previews: &Path) -> anyhow::Res
     Ok(report)
 }
 
+/// `scene` rendered at `frame` with `settings`, and its glint layer: the luminance of the
+/// image minus `smooth`'s (the same scene with smooth materials), per pixel.
+fn glint_layer(
+    scene: &Scene,
+    smooth: &Scene,
+    settings: &RenderSettings,
+    frame: f64,
+) -> anyhow::Result<(RgbImage, Vec<f64>)> {
+    let image = render(scene, settings, frame, &|_, _| {})?.image;
+    let reference = render(smooth, settings, frame, &|_, _| {})?.image;
+    let layer = image
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .map(|(a, b)| glint_tracer::light::luminance(*a - *b))
+        .collect();
+    Ok((image, layer))
+}
+
 /// glitter_object's camera move with coherent particles and with a new particle set per frame:
 /// filmstrips of frames 0, 4, …, 20, and, over seven steps of a tenth of a frame (the image moves
 /// by under a pixel per step), the mean absolute change of the glint layer (the image minus the
@@ -342,15 +353,7 @@ fn animation(path: &Path, args: &ScenesArgs, previews: &Path) -> anyhow::Result<
             if randomness == GlintRandomness::PerFrame {
                 scene.reseed_glints_for_frame(&base, index)?;
             }
-            let image = render(&scene, &settings, frame, &|_, _| {})?.image;
-            let reference = render(&smooth, &settings, frame, &|_, _| {})?.image;
-            let layer = image
-                .pixels
-                .iter()
-                .zip(&reference.pixels)
-                .map(|(a, b)| glint_tracer::light::luminance(*a - *b))
-                .collect();
-            Ok((image, layer))
+            glint_layer(&scene, &smooth, &settings, frame)
         };
         let mut frames = vec![];
         for frame in (0..=20).step_by(4) {

@@ -1124,6 +1124,26 @@ impl<'a> WholeRuns<'a> {
     }
 }
 
+/// The footprint of the masses' property tests: centred at `uv`, edges `size` and
+/// `size`·`aspect` long, turned by `turn` of a full turn (axis-aligned if `aligned`) and
+/// sheared by `skew`.
+#[cfg(test)]
+fn turned_footprint(
+    uv: DVec2,
+    size: f64,
+    (aspect, turn, skew): (f64, f64, f64),
+    aligned: bool,
+) -> Footprint {
+    let (sin, cos) = if aligned {
+        (0.0, 1.0)
+    } else {
+        (std::f64::consts::TAU * turn).sin_cos()
+    };
+    let dx = size * DVec2::new(cos, sin);
+    let dy = size * aspect * DVec2::new(-sin + skew * cos, cos + skew * sin);
+    Footprint::new(uv, dx, dy).expect("a finite footprint")
+}
+
 /// 400 footprints 0.3 to 60 texels across (of a `width` × `height` map) at every angle,
 /// every fourth axis-aligned, every fifth a sliver and every seventh with its corners on
 /// texel corners, at positions over several tiles: for tests of the masses over footprints.
@@ -1852,14 +1872,8 @@ mod tests {
                 1 => (at + DVec2::new(0.5, 0.0)) * texel,
                 _ => at / 8.0 + DVec2::new(0.3, 0.7) * texel,
             } + DVec2::new(nudge.0, nudge.1) * size;
-            let (sin, cos) = if aligned {
-                (0.0, 1.0)
-            } else {
-                (std::f64::consts::TAU * turn).sin_cos()
-            };
-            let dx = size * DVec2::new(cos, sin);
-            let dy = size * aspect * DVec2::new(-sin + skew * cos, cos + skew * sin);
-            let footprint = Footprint::new(uv, dx, dy).unwrap();
+            let footprint = turned_footprint(uv, size, (aspect, turn, skew), aligned);
+            let (dx, dy) = footprint.edges();
             let mass = map.mass_in(&footprint);
             proptest::prop_assert!(mass.is_finite() && mass >= 0.0, "{mass:e} at {uv} {dx} {dy}");
             // The footprint is inside texel (i, j) when its extent about the centre stays

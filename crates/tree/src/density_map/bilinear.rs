@@ -1003,14 +1003,8 @@ mod tests {
                 1 => at * texel,
                 _ => at / 8.0 + DVec2::new(0.3, 0.7) * texel,
             } + DVec2::new(nudge.0, nudge.1) * size;
-            let (sin, cos) = if aligned {
-                (0.0, 1.0)
-            } else {
-                (std::f64::consts::TAU * turn).sin_cos()
-            };
-            let dx = size * DVec2::new(cos, sin);
-            let dy = size * aspect * DVec2::new(-sin + skew * cos, cos + skew * sin);
-            let footprint = Footprint::new(uv, dx, dy).unwrap();
+            let footprint = crate::density_map::turned_footprint(uv, size, (aspect, turn, skew), aligned);
+            let (dx, dy) = footprint.edges();
             let mass = map.mass_in(&footprint);
             proptest::prop_assert!(mass.is_finite() && mass >= 0.0, "{mass:e} at {uv} {dx} {dy}");
             let scale = DVec2::new(w as f64, h as f64);
