@@ -25,7 +25,8 @@ pub const MATERIAL_CACHE_BYTES: usize = 256 << 20;
 /// A built material's memory: the bytes its maps hold ([`glint_brdf::DiscreteBrdf::map_bytes`],
 /// exact) plus, for each roughness level's count tree, an estimate from its Alg. 2 table:
 /// 1.6 MB plus 530 bytes per entry (the table, the directional split of each entry's cell,
-/// its descent steps). The estimate was measured as the peak resident memory of
+/// its descent steps), plus the quadrature's refinement (`NdfQuadrature::heap_bytes`,
+/// which also counts the table's map again). The estimate was measured as the peak resident memory of
 /// `cargo xtask eval` on one line per material, less that of the process: Beckmann α = 0.1,
 /// 684 entries, 2.0 MB; α = 10⁻³ and α_y = 0.3, 13 380 entries, 6.6 MB; α = 10⁻⁴ and
 /// α_y = 1, 78 560 entries, 43 MB; GGX at those, 97 472 entries, 52 MB (`docs/eval.md`,
@@ -34,7 +35,10 @@ fn material_bytes(material: &EvalMaterial) -> usize {
     let brdf = material.brdf();
     let trees: usize = brdf
         .level_trees()
-        .map(|(_, tree)| 1_600_000 + 530 * tree.quadrature().len())
+        .map(|(_, tree)| {
+            let quadrature = tree.quadrature();
+            1_600_000 + 530 * quadrature.len() + quadrature.heap_bytes()
+        })
         .sum();
     trees.saturating_add(usize::try_from(brdf.map_bytes()).unwrap_or(usize::MAX))
 }

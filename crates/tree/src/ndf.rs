@@ -9,6 +9,26 @@
 //! one-point rule Ω·p(centre) serves. The same "no entry" condition gates the error criterion
 //! (Eq. 10) of the traversal.
 //!
+//! **The refinement below the table (the law in the lobe's tail).** δ_abs = 10⁻⁵ is an absolute
+//! error in probability: it accepts a whole octant's worth of tail where p falls by orders of
+//! magnitude across one cell, and a split's one-point rule then gives that cell the mass of its
+//! centre (Beckmann α = 0.1: 8% too much at θ = 15°, 24× too little at 21°). At N = 10¹² that
+//! is millions of particles per unit area in the wrong places, and exact counts are no longer
+//! Binomial(N, q) with q = A·∫p. So Alg. 2's acceptance also asks that the one-point rule's
+//! error be small against the Poisson spread of the cell's own particles: for a locally
+//! quadratic p on a flat triangle the exact integral is (3·midpoint + corner)/4, so the
+//! midpoint rule misses it by |midpoint − corner|/4, and the cell is accepted only when
+//! N′·|midpoint − corner|/4 ≤ [`LAW_BIAS`]·√(N′·I), I = max(midpoint, corner) and
+//! N′ = min(N, [`LAW_PARTICLES`]): in a footprint of N′ particles the rule misplaces at most
+//! [`LAW_BIAS`] = 0.02 standard deviations of the cell's number (a cone over K such cells sees
+//! up to 0.02·√K of its own: `exact_counts_follow_p_in_the_lobe_tail` measures 0.8–4.1 at
+//! N·A = 10⁹). Where that test refines a cell the paper's test accepted, the sums below it go
+//! to a second map, the *refinement*: it sets the integrals of splits (and so the particle
+//! set), while the table alone keeps Alg. 2's role of gating Eq. 10 and of the splits the tree
+//! caches. Its size, by `NdfQuadrature::heap_bytes` with the table (Beckmann): α = 0.1, 1 640
+//! entries at N = 10⁶, 25 272 from N′ = 2³⁰ up (0.6 MB, 11 ms to build); α = 1, 30 268
+//! (1.1 MB); α = (10⁻³, 0.3), whose table already holds 13 380, 1.1·10⁶ (36 MB, 0.7 s).
+//!
 //! Directional cells are identified by the paper's labels restricted to directional splits:
 //! the hemisphere is 1, octant j (0-based) is 3 + j, child j of cell i is 4i + j − 1.
 
@@ -119,17 +139,34 @@ impl Hasher for LabelHasher {
     }
 }
 
-/// The memo table of Alg. 2 for one density.
+/// How far the one-point rule may misplace the particles of a cell the quadrature accepts, in
+/// standard deviations of their number in a footprint of [`LAW_PARTICLES`] (see the module
+/// docs).
+pub const LAW_BIAS: f64 = 0.02;
+
+/// The most particles a footprint may hold for [`LAW_BIAS`] to bound the law's error in its
+/// counts (2³⁰: a 10⁻³ footprint at N = 10¹²); a footprint of N·A = k·2³⁰ sees up to
+/// √k·[`LAW_BIAS`] standard deviations. Materials of fewer particles are refined for N.
+pub const LAW_PARTICLES: u64 = 1 << 30;
+
+/// The memo table of Alg. 2 for one density, and its refinement for N particles.
 #[derive(Clone, Debug)]
 pub struct NdfQuadrature {
     table: HashMap<u64, f64, BuildHasherDefault<LabelHasher>>,
+    /// The sums of the cells Alg. 2 accepts (or that lie below one it accepts) and the law's
+    /// test refines, by label.
+    refinement: HashMap<u64, f64, BuildHasherDefault<LabelHasher>>,
+    /// min(N, [`LAW_PARTICLES`]), the particles whose spread the law's test measures errors
+    /// against.
+    particles: f64,
     tolerance: QuadratureTolerance,
     build_time: Duration,
     hemisphere_integral: f64,
 }
 
 impl NdfQuadrature {
-    /// Runs Alg. 2 on the four octants of the upper hemisphere.
+    /// Runs Alg. 2 on the four octants of the upper hemisphere, refined for a material of
+    /// `particles` particles in the unit square (see the module docs).
     ///
     /// # Errors
     /// [`TreeError::InvalidTolerance`] for negative or non-finite tolerances, or a maximum
@@ -139,6 +176,7 @@ impl NdfQuadrature {
     pub fn build(
         density: &NormalDensity,
         tolerance: QuadratureTolerance,
+        particles: u64,
     ) -> Result<Self, TreeError> {
         let valid = |x: f64| x >= 0.0 && x.is_finite();
         // Table keys are labels, exact only to MAX_LABELLED_DEPTH.
@@ -151,13 +189,15 @@ impl NdfQuadrature {
         let started = Instant::now();
         let mut quadrature = Self {
             table: HashMap::default(),
+            refinement: HashMap::default(),
+            particles: particles.min(LAW_PARTICLES) as f64,
             tolerance,
             build_time: Duration::ZERO,
             hemisphere_integral: 0.0,
         };
         let mut total = 0.0;
         for octant in DirectionalCell::HEMISPHERE.children() {
-            total += quadrature.integrate(&octant, density)?;
+            total += quadrature.integrate(&octant, density, false)?;
         }
         if !(total > 0.0 && total.is_finite()) {
             return Err(TreeError::InvalidDensity);
@@ -168,11 +208,13 @@ impl NdfQuadrature {
     }
 
     /// Alg. 2 for one cell: the corner rule where it agrees with the midpoint rule, else the
-    /// sum over the children, memoized.
+    /// sum over the children, memoized in the table, or in the refinement where the paper's
+    /// test accepts the cell (or one above it, `refining`) and the law's does not.
     fn integrate(
         &mut self,
         cell: &DirectionalCell,
         density: &NormalDensity,
+        refining: bool,
     ) -> Result<f64, TreeError> {
         let triangle = cell.triangle.expect("Alg. 2 runs below the hemisphere");
         let area = triangle.solid_angle();
@@ -188,17 +230,26 @@ impl NdfQuadrature {
         let midpoint_rule = area * evaluate(triangle.centroid())?;
         let corner_rule = area / 3.0 * (evaluate(a)? + evaluate(b)? + evaluate(c)?);
         let difference = (midpoint_rule - corner_rule).abs();
-        let accepted = difference < self.tolerance.absolute
-            || difference < self.tolerance.relative * corner_rule
-            || cell.depth >= self.tolerance.max_depth;
-        if accepted {
+        let deepest = cell.depth >= self.tolerance.max_depth;
+        let paper_accepts = refining
+            || difference < self.tolerance.absolute
+            || difference < self.tolerance.relative * corner_rule;
+        // N·|midpoint − corner|/4 ≤ LAW_BIAS·√(N·I), squared.
+        let misplaced = self.particles * difference / 4.0;
+        let law_accepts = misplaced * misplaced
+            <= LAW_BIAS * LAW_BIAS * self.particles * midpoint_rule.max(corner_rule);
+        if deepest || (paper_accepts && law_accepts) {
             return Ok(corner_rule);
         }
         let mut sum = 0.0;
         for child in cell.children() {
-            sum += self.integrate(&child, density)?;
+            sum += self.integrate(&child, density, paper_accepts)?;
         }
-        self.table.insert(cell.label, sum);
+        if paper_accepts {
+            self.refinement.insert(cell.label, sum);
+        } else {
+            self.table.insert(cell.label, sum);
+        }
         Ok(sum)
     }
 
@@ -211,8 +262,19 @@ impl NdfQuadrature {
             || (cell.depth <= self.tolerance.max_depth && self.table.contains_key(&cell.label))
     }
 
-    /// ∫ p over `cell`: the table entry if there is one, else the one-point rule Ω·p(centre)
-    /// (the solid angle is computed only then).
+    /// Whether `cell`'s integral is the sum of its children's (a table or refinement entry):
+    /// a particle's normal that reaches it descends further.
+    #[inline]
+    #[must_use]
+    pub fn is_refined(&self, cell: &DirectionalCell) -> bool {
+        self.has_entry(cell)
+            || (cell.depth <= self.tolerance.max_depth
+                && !self.refinement.is_empty()
+                && self.refinement.contains_key(&cell.label))
+    }
+
+    /// ∫ p over `cell`: the table or refinement entry if there is one, else the one-point rule
+    /// Ω·p(centre) (the solid angle is computed only then).
     #[inline]
     #[must_use]
     pub fn integral(&self, cell: &DirectionalCell, density: &NormalDensity) -> f64 {
@@ -242,11 +304,14 @@ impl NdfQuadrature {
     }
 
     fn table_entry(&self, cell: &DirectionalCell) -> Option<f64> {
-        if cell.depth <= self.tolerance.max_depth {
-            self.table.get(&cell.label).copied()
-        } else {
-            None
+        if cell.depth > self.tolerance.max_depth {
+            return None;
         }
+        let entry = self.table.get(&cell.label).copied();
+        if entry.is_some() || self.refinement.is_empty() {
+            return entry;
+        }
+        self.refinement.get(&cell.label).copied()
     }
 
     /// The probabilities of a directional split into `children` (with solid angles
@@ -269,6 +334,19 @@ impl NdfQuadrature {
     #[must_use]
     pub fn len(&self) -> usize {
         self.table.len()
+    }
+
+    /// The number of refinement entries (see the module docs).
+    #[must_use]
+    pub fn refinement_len(&self) -> usize {
+        self.refinement.len()
+    }
+
+    /// The bytes the table and the refinement hold: 8 for a key, 8 for a value and one control
+    /// byte per bucket of their hash maps, whose buckets are at least 8/7 of their capacity.
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        (self.table.capacity() + self.refinement.capacity()) * 17 * 8 / 7
     }
 
     /// Whether the table is empty (p close to uniform on every octant).
@@ -458,8 +536,8 @@ mod tests {
     #[test]
     fn cached_splits_are_the_splits_of_the_cells_asked_for() {
         let density = beckmann(0.02);
-        let quadrature =
-            NdfQuadrature::build(&density, QuadratureTolerance::default()).expect("valid");
+        let quadrature = NdfQuadrature::build(&density, QuadratureTolerance::default(), 1_000_000)
+            .expect("valid");
         let splits = DirectionalSplits::build(&quadrature, &density, 4);
         // Every cell above depth 4, and every deeper cell with an entry (and its children).
         let mut level = vec![DirectionalCell::HEMISPHERE];
@@ -495,7 +573,7 @@ mod tests {
             ..QuadratureTolerance::default()
         };
         assert!(matches!(
-            NdfQuadrature::build(&density, tolerance),
+            NdfQuadrature::build(&density, tolerance, 1_000_000),
             Err(TreeError::InvalidTolerance)
         ));
     }

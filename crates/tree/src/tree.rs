@@ -308,7 +308,8 @@ impl CountTree {
                 levels: config.cached_levels,
             });
         }
-        let quadrature = NdfQuadrature::build(density.as_ref(), config.quadrature)?;
+        let quadrature =
+            NdfQuadrature::build(density.as_ref(), config.quadrature, config.particles)?;
         let directional_splits =
             DirectionalSplits::build(&quadrature, density.as_ref(), CACHED_DIRECTIONAL_LEVELS);
         let mut tree = Self {

@@ -2,7 +2,7 @@
 //!
 //! The directional law of the tree below a leaf, for one particle: descend the directional
 //! hierarchy with the split probabilities of [`NdfQuadrature::split_probabilities`] (the law
-//! of the multinomial splits, one particle at a time) until the cell has no table entry and
+//! of the multinomial splits, one particle at a time) until the cell has no entry (Alg. 2's table or its refinement) and
 //! its longest edge is below [`LEAF_CELL_ARC`], then sample the flat triangle uniformly and
 //! project (the projection's non-uniformity there is below 1e-4 relative).
 //!
@@ -38,7 +38,7 @@ impl CountTree {
         cell: &'a DirectionalCell,
     ) -> Option<&'a SphericalTriangle> {
         cell.triangle.as_ref().filter(|triangle| {
-            triangle.longest_chord() <= LEAF_CELL_CHORD && !self.quadrature.has_entry(cell)
+            triangle.longest_chord() <= LEAF_CELL_CHORD && !self.quadrature.is_refined(cell)
         })
     }
 
