@@ -1,6 +1,14 @@
-//! The memory and build time of a material's roughness levels, for the figures of
-//! docs/performance.md ("Glint maps", memory): `cargo run --release -p glint-benches --example
-//! map_memory [SIDE]` (default 4096). For roughness maps of SIDE² texels, each at several
+//! The memory and build time of a material's maps, for the figures of docs/performance.md
+//! ("Glint maps", memory): `cargo run --release -p glint-benches --example map_memory [SIDE]`
+//! (default 4096).
+//!
+//! First a density map alone (the benchmarks' production map, `production_density_values`,
+//! of SIDE² texels): the bytes it holds per texel (counted before building and held), its
+//! build time per megatexel, and the process's peak resident memory while building beyond
+//! what it held before (the values given, 8 bytes a texel, are not counted; Linux's
+//! `/proc/self/status`, the peak reset through `/proc/self/clear_refs`).
+//!
+//! Then roughness maps of SIDE² texels, each at several
 //! `roughness_levels` K, prints the bytes the K level maps hold per texel (counted before
 //! building, `MapBytes::of`, which a unit test checks against the built tables), what K maps
 //! stored whole would hold, and the material's build time (`DiscreteBrdf::new`: the level maps
@@ -63,6 +71,7 @@ fn main() {
     let noise: Vec<f64> = (0..texels)
         .map(|k| 0.01 + 0.3 * (k % 97) as f64 / 96.0)
         .collect();
+    density_map(side);
     let whole = DensityMap::bytes_for(side, side) as f64;
     println!("{side} × {side} roughness maps");
     println!();
@@ -115,4 +124,47 @@ fn main() {
             );
         }
     }
+}
+
+/// The density map's row (see the module docs).
+fn density_map(side: usize) {
+    let texels = (side * side) as f64;
+    let values = glint_benches::production_density_values(side);
+    let counted = DensityMap::bytes_for_values(side, side, &values);
+    let before = resident_kib("VmRSS");
+    // Writing 5 resets the peak (VmHWM) to the current resident set.
+    let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
+    let start = Instant::now();
+    let map = DensityMap::new(side, side, &values).expect("a valid map");
+    let seconds = start.elapsed().as_secs_f64();
+    let peak = resident_kib("VmHWM");
+    assert_eq!(map.heap_bytes(), counted);
+    println!("{side} × {side} density map (the production map)");
+    println!();
+    println!(
+        "| bytes per texel | build (ms per megatexel) | peak while building (bytes per texel) |"
+    );
+    println!("|---|---|---|");
+    let peak = match (reset, before, peak) {
+        (true, Some(before), Some(peak)) => {
+            format!(
+                "{:.1}",
+                1024.0 * peak.saturating_sub(before) as f64 / texels
+            )
+        }
+        _ => "not measured".to_string(),
+    };
+    println!(
+        "| {:.2} | {:.0} | {peak} |",
+        counted as f64 / texels,
+        1e3 * seconds / (texels / 1e6),
+    );
+    println!();
+}
+
+/// A field of `/proc/self/status`, in KiB (`None` where it cannot be read).
+fn resident_kib(field: &str) -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|line| line.starts_with(field))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }

@@ -529,6 +529,8 @@ pub(crate) struct LevelBytes {
     own: u64,
     /// Their bytes, blocked over one family.
     shared: u64,
+    /// Texels a level.
+    texels: usize,
 }
 
 impl LevelBytes {
@@ -543,7 +545,12 @@ impl LevelBytes {
             .sum();
         let shared = (LevelTexels::bytes_for(width, height)
             + maps * DensityMap::roughness_level_bytes(width, height)) as u64;
-        Self { maps, own, shared }
+        Self {
+            maps,
+            own,
+            shared,
+            texels: width * height,
+        }
     }
 
     /// Whether the levels share one family of texels: where that holds at most a quarter of
@@ -556,9 +563,16 @@ impl LevelBytes {
     /// 0.92× for white noise, 1.33× for a gradient's level); a glitter_pattern frame (a
     /// 256 × 128 map of two α, tiny boxes) 1.065× the instructions (docs/performance.md). So
     /// where the levels' own tiled maps hold less than 4× the family's bytes (α smooth or in
-    /// regions: about two maps' worth) they are kept.
+    /// regions: about two maps' worth) they are kept. From
+    /// [`DensityMap::FEWEST_BYTES_FROM_TEXELS`] texels a level on, memory decides, as it
+    /// does for each level's own map (which may then be blocked itself): the levels share
+    /// wherever that holds fewer bytes.
     pub(crate) fn shared(&self) -> bool {
-        4 * self.shared <= self.own
+        if self.texels >= DensityMap::FEWEST_BYTES_FROM_TEXELS {
+            self.shared < self.own
+        } else {
+            4 * self.shared <= self.own
+        }
     }
 
     /// The bytes the levels hold, kept as [`Self::shared`] says.
@@ -640,6 +654,26 @@ mod tests {
     /// density map with zeros, interpolated (8 and 2 levels) and exact (3 values), filtered
     /// nearest and bilinear, every level's texels and its answers on random boxes and
     /// footprints are bit for bit those of the level's map built from its values.
+    /// Below `DensityMap::FEWEST_BYTES_FROM_TEXELS` texels the levels share their texels only
+    /// for a fourfold saving (a shared level answers small boxes slower than its own whole
+    /// map); from there on, where it saves anything (the levels' own maps are blocked then).
+    #[test]
+    fn large_levels_share_wherever_that_holds_fewer_bytes() {
+        let large = DensityMap::FEWEST_BYTES_FROM_TEXELS;
+        let bytes = |texels, own, shared| LevelBytes {
+            maps: 4,
+            own,
+            shared,
+            texels,
+        };
+        assert!(!bytes(large - 1, 300, 100).shared());
+        assert!(bytes(large - 1, 400, 100).shared());
+        assert!(bytes(large, 300, 100).shared());
+        assert!(!bytes(large, 100, 100).shared());
+        assert_eq!(bytes(large, 300, 100).bytes(), 100);
+        assert_eq!(bytes(large - 1, 300, 100).bytes(), 300);
+    }
+
     #[test]
     fn shared_levels_are_the_levels_own_maps() {
         let (width, height) = (67, 45);

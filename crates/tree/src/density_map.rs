@@ -30,7 +30,12 @@
 //!
 //! Memory: at most about 12.7 bytes per texel (8 for the summed-area table, which also holds
 //! the values, 4 for the table of changes, 0.7 for the pyramid of maxima), at most
-//! [`DensityMap::MAX_TEXELS`] texels. A map that is 0 over about a third or more of its square
+//! [`DensityMap::MAX_TEXELS`] texels. A map of 2²² texels or more (2048², where memory rather
+//! than the last few percent of speed decides) keeps whichever layout holds the fewest bytes,
+//! usually its own texels in 33 bits with tables over 8 × 8 blocks, about 4.5 bytes a texel
+//! (`density_map/blocked.rs`, [`LevelTexels`]'s single map; its large leaves' placements in
+//! `density_map/large_box.rs`): the same integers, so the same answers, bit for bit. A map
+//! that is 0 over about a third or more of its square
 //! (a roughness level's d·w_k, a sparse mask) keeps its tables in tiles of 64 × 64 texels and
 //! stores only the tiles that hold a non-zero value, about 0.4 bytes a texel besides
 //! (`density_map/tables.rs`, which derives it): the same integers, so the same answers, bit
@@ -49,6 +54,7 @@ use crate::footprint::Footprint;
 
 mod bilinear;
 mod blocked;
+mod large_box;
 mod level_texels;
 mod polygon;
 mod tables;
@@ -257,6 +263,11 @@ impl DensityMap {
     /// keeps one map within a material's budget (`glint_brdf::MAX_MAP_BYTES`).
     pub const MAX_TEXELS: usize = 1 << 28;
 
+    /// Maps of at least this many texels (2²², 2048 × 2048) keep the layout of fewest bytes,
+    /// blocked tables over their own texels included (about 4.5 bytes a texel where 12.7
+    /// whole); smaller maps keep the faster whole tables unless tiles save a third.
+    pub const FEWEST_BYTES_FROM_TEXELS: usize = tables::BLOCKED_FROM_TEXELS;
+
     /// The most heap memory, in bytes, a `width` × `height` map may hold: its tables whole,
     /// the summed-area table (8 bytes a texel), the table of value changes (4 bytes a texel)
     /// and the pyramid of maxima (about 2/3 of a byte a texel). A function of the size alone,
@@ -284,8 +295,9 @@ impl DensityMap {
         Tables::bytes_for(occupancy)
     }
 
-    /// The heap memory this map holds, in bytes (a roughness level's family of texels not
-    /// included: the levels share it, [`Self::level_texels`]).
+    /// The heap memory this map holds, in bytes, its own texels included where it keeps them
+    /// (a large map's blocked layout) but not a roughness level's family of texels (the
+    /// levels share it, [`Self::level_texels`]).
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
         self.tables.heap_bytes()
@@ -298,12 +310,12 @@ impl DensityMap {
         self.heap_bytes() + self.level_texels().map_or(0, |texels| texels.heap_bytes())
     }
 
-    /// The family of texels a [`Self::roughness_level`] reads (`None` for a map that holds its
-    /// own tables).
+    /// The family of texels a [`Self::roughness_level`] reads, which its levels share (`None`
+    /// for a map that holds its own tables and texels).
     #[must_use]
     pub fn level_texels(&self) -> Option<&Arc<LevelTexels>> {
         match &self.tables.sums {
-            PrefixTable::Blocked(table) => Some(table.texels()),
+            PrefixTable::Blocked(table) if !table.texels().is_single() => Some(table.texels()),
             _ => None,
         }
     }
@@ -833,7 +845,7 @@ impl DensityMap {
                 ..=16 => Self::place_in_box::<289>,
                 17..=32 => Self::place_in_box::<1089>,
                 33..=64 => Self::place_in_box::<4225>,
-                _ => Self::place_by_table,
+                _ => Self::place_in_large_box,
             };
             return place(self, table, spans, min, size, uniforms, positions);
         }
@@ -862,7 +874,32 @@ impl DensityMap {
         self.place_by((columns, rows), min, size, uniforms, positions, rect_sum);
     }
 
-    /// [`Self::place_each`] on a blocked level's box larger than 64 texels a side: its
+    /// [`Self::place_each`] on a blocked map's box larger than 64 texels a side: by its block
+    /// boundaries, then one block's columns (`density_map/large_box.rs`), up to
+    /// `large_box::MAX_SIDE` texels a side, else [`Self::place_by_table`].
+    fn place_in_large_box(
+        &self,
+        table: &blocked::BlockedPrefix<u64>,
+        (columns, rows): (&TexelSpan, &TexelSpan),
+        min: DVec2,
+        size: f64,
+        uniforms: &[[f64; 2]],
+        positions: &mut [DVec2],
+    ) {
+        let Some(large) = large_box::LargeBox::new(table, columns, rows) else {
+            return self.place_by_table(table, (columns, rows), min, size, uniforms, positions);
+        };
+        for (u, position) in uniforms.iter().zip(positions) {
+            let (i, t) = large.column(u[0]);
+            let (j, s) = large.row(i, u[1]);
+            *position = DVec2::new(
+                within_texel(i, self.width, min.x, min.x + size, t),
+                within_texel(j, self.height, min.y, min.y + size, s),
+            );
+        }
+    }
+
+    /// [`Self::place_each`] on a blocked map's box larger than 64 texels a side: its
     /// rectangles' sums from its tables (strips of texels along their unaligned edges).
     fn place_by_table(
         &self,
@@ -893,18 +930,13 @@ impl DensityMap {
                 .map(|(j0, j1, w)| rect_sum((a, b), (j0, j1)) as f64 * w)
                 .sum::<f64>()
         };
-        let within = |k: usize, n: usize, lo: f64, hi: f64, t: f64| {
-            let a = (k as f64 / n as f64).max(lo);
-            let b = ((k + 1) as f64 / n as f64).min(hi);
-            (a + t * (b - a)).clamp(a, b)
-        };
         for (u, position) in uniforms.iter().zip(positions) {
             let (i, t) = invert(columns, &strip, u[0]);
             let column = |a: usize, b: usize| rect_sum((i, i + 1), (a, b)) as f64;
             let (j, s) = invert(rows, &column, u[1]);
             *position = DVec2::new(
-                within(i, self.width, min.x, min.x + size, t),
-                within(j, self.height, min.y, min.y + size, s),
+                within_texel(i, self.width, min.x, min.x + size, t),
+                within_texel(j, self.height, min.y, min.y + size, s),
             );
         }
     }
@@ -1186,6 +1218,14 @@ fn fixed_point(value: f64) -> u64 {
     (value * FIXED_ONE).round() as u64
 }
 
+/// The position at fraction `t` across texel `k` of `n` along an axis, within the box's
+/// [lo, hi] on it.
+fn within_texel(k: usize, n: usize, lo: f64, hi: f64, t: f64) -> f64 {
+    let a = (k as f64 / n as f64).max(lo);
+    let b = ((k + 1) as f64 / n as f64).min(hi);
+    (a + t * (b - a)).clamp(a, b)
+}
+
 /// The texel k of `span` where the cumulative mass passes the fraction `u` of the span's total,
 /// and the fraction of k's own mass below that point; `mass(a, b)` is the mass of texels
 /// [a, b), which `span`'s end weights scale at its ends. The cumulative mass of texels
@@ -1296,19 +1336,20 @@ mod tests {
             for values in [full, mostly_zero(width, height, 4)] {
                 let occupancy = MapOccupancy::of_values(width, height, &values);
                 let pyramid = MaxPyramid::sizes(width, height);
-                let [whole, tiled] = [Layout::Whole, Layout::Tiled].map(|layout| {
-                    let map = DensityMap::with_layout(
-                        width,
-                        height,
-                        &values,
-                        MapFilter::Nearest,
-                        Some(layout),
-                    )
-                    .unwrap();
-                    let counted = layout.bytes(width, height, &occupancy, &pyramid);
-                    assert_eq!(map.heap_bytes(), counted, "{width} x {height} {layout:?}");
-                    counted
-                });
+                let [whole, tiled, _] =
+                    [Layout::Whole, Layout::Tiled, Layout::Blocked].map(|layout| {
+                        let map = DensityMap::with_layout(
+                            width,
+                            height,
+                            &values,
+                            MapFilter::Nearest,
+                            Some(layout),
+                        )
+                        .unwrap();
+                        let counted = layout.bytes(width, height, &occupancy, &pyramid);
+                        assert_eq!(map.heap_bytes(), counted, "{width} x {height} {layout:?}");
+                        counted
+                    });
                 let chosen = DensityMap::new(width, height, &values).unwrap();
                 let saves_a_third = 3 * tiled <= 2 * whole;
                 assert_eq!(
@@ -1328,6 +1369,36 @@ mod tests {
         // About 12.7 bytes a texel for a large map stored whole, as the module docs say.
         let per_texel = DensityMap::bytes_for(8192, 8192) as f64 / (8192.0 * 8192.0);
         assert!((12.6..12.7).contains(&per_texel), "{per_texel}");
+    }
+
+    /// Maps of 2²² texels and more take the layout of fewest bytes: blocked (about 4.5 bytes
+    /// a texel, as the module docs say) where every tile holds a value, tiled where most tiles
+    /// are empty; a map of one texel fewer keeps the whole tables.
+    #[test]
+    fn large_maps_take_the_layout_of_fewest_bytes() {
+        let occupancy = |width: usize, height: usize, sparse: bool| {
+            let mut occupancy = MapOccupancy::new(width, height);
+            for j in (0..height).step_by(if sparse { 64 * 8 } else { 1 }) {
+                for i in (0..width).step_by(if sparse { 64 * 8 } else { 1 }) {
+                    occupancy.mark(i, j, 0.5);
+                }
+            }
+            occupancy
+        };
+        let choose = |width, height, sparse| {
+            let pyramid = MaxPyramid::sizes(width, height);
+            Layout::choose(width, height, &occupancy(width, height, sparse), &pyramid)
+        };
+        let (layout, bytes) = choose(2048, 2048, false);
+        assert_eq!(layout, Layout::Blocked);
+        let per_texel = bytes as f64 / (2048.0 * 2048.0);
+        assert!((4.4..4.6).contains(&per_texel), "{per_texel}");
+        assert_eq!(choose(2048, 2048, true).0, Layout::Tiled);
+        assert_eq!(choose(2047, 2048, false).0, Layout::Whole);
+        assert_eq!(
+            DensityMap::bytes_for_occupancy(&occupancy(2048, 2048, false)),
+            bytes
+        );
     }
 
     /// Asserts that maps `a` and `b` answer `count` random boxes and footprints alike, bit for

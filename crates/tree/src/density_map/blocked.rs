@@ -1,6 +1,7 @@
 //! A roughness level's summed-area tables over blocks, its texels read from the family they
 //! share ([`LevelTexels`]): the layout that keeps K levels' memory from growing K times a map
-//! where α changes at every texel.
+//! where α changes at every texel. A large map of its own takes the same tables over its own
+//! texels ([`LevelTexels`]'s single map, 33 bits a texel): about 4.5 bytes a texel in all.
 //!
 //! The table holds S at the corners of whole blocks of [`BLOCK`] × [`BLOCK`] texels,
 //! S(a·B, b·B) for a ≤ ⌊W/B⌋, b ≤ ⌊H/B⌋: 1/B² of an entry a texel. A rectangle's sum is
@@ -16,9 +17,9 @@
 //! - whether a box is constant: one look-up where its inner whole blocks hold a change
 //!   ([`BlockedPrefix::texels_constant`]);
 //! - a leaf's particles' placements: a box of up to 64 × 64 texels is read once into a table
-//!   of its own ([`BlockedPrefix::box_sums`], `DensityMap::place_each`); a larger box's binary searches read strips up
-//!   to 7 texels wide along the rectangles' unaligned edges at every step (a sparse leaf over
-//!   hundreds of texels of a large map costs far more than under the level's own map).
+//!   of its own ([`BlockedPrefix::box_sums`], `DensityMap::place_each`); a larger one, up to
+//!   1024 texels a side, is searched by its block boundaries and then one block's columns
+//!   (`large_box.rs`): about nine times its height in texels a particle.
 //! - a footprint's mass ([`super::DensityMap::mass_in`]): the runs of whole texels of eight
 //!   rows that make a row of blocks are read together, so it reads about 8 texels per texel
 //!   of the footprint's perimeter.
@@ -306,22 +307,113 @@ mod tests {
             .collect()
     }
 
+    /// Asserts that `blocked` (the map of `values` reconstructed nearest and bilinear, blocked)
+    /// answers every question exactly as the same values stored whole: the tables at every
+    /// corner, texel and block of the pyramid, random rectangles, and the masses, constancy,
+    /// placements, bounds and footprint integrals of random boxes, footprints and a tree's
+    /// dyadic boxes, bit for bit.
+    fn assert_blocked_answers_as_whole(
+        (width, height): (usize, usize),
+        values: &[f64],
+        blocked: &[DensityMap; 2],
+        rng: &mut TeaRng,
+        what: &str,
+    ) {
+        let whole = MapFilter::ALL.map(|filter| {
+            DensityMap::with_layout(width, height, values, filter, Some(Layout::Whole)).unwrap()
+        });
+        for (whole, blocked) in whole.iter().zip(blocked.iter()) {
+            assert_eq!((whole.mean, whole.uniform), (blocked.mean, blocked.uniform));
+            assert_eq!(whole.max(), blocked.max());
+            assert_eq!(whole.texels(), blocked.texels());
+        }
+        let [whole, bilinear_whole] = &whole;
+        let [blocked, bilinear_blocked] = blocked;
+        for j in 0..=height {
+            for i in 0..=width {
+                assert_eq!(whole.tables.sums.at(i, j), blocked.tables.sums.at(i, j));
+                assert_eq!(
+                    whole.tables.changes.at(i, j),
+                    blocked.tables.changes.at(i, j)
+                );
+                if i < width && j < height {
+                    let value = fixed_point(values[(height - 1 - j) * width + i]);
+                    assert_eq!(blocked.tables.sums.cell(i, j), value, "{what}");
+                }
+            }
+        }
+        for (level, (w, h)) in MaxPyramid::sizes(width, height).into_iter().enumerate() {
+            for j in 0..h {
+                for i in 0..w {
+                    let level = level + super::super::tables::FIRST_MAX_LEVEL;
+                    assert_eq!(
+                        whole.block_max(level, i, j),
+                        blocked.block_max(level, i, j),
+                        "{what}: block ({i}, {j}) of level {level}"
+                    );
+                }
+            }
+        }
+        for _ in 0..5000 {
+            let [a, b] = unit_pair(rng.next_bits());
+            let [c, d] = unit_pair(rng.next_bits());
+            let span = |u: f64, v: f64, n: usize| {
+                let first = (u * n as f64) as usize;
+                let length = ((v * v) * (n - first + 1) as f64) as usize;
+                (first, (first + length).min(n))
+            };
+            let (columns, rows) = (span(a, c, width), span(b, d, height));
+            assert_eq!(
+                whole.tables.sums.rect(columns, rows),
+                blocked.tables.sums.rect(columns, rows),
+                "{what}: {columns:?} x {rows:?}"
+            );
+            assert_eq!(
+                whole.tables.changes.rect(columns, rows),
+                blocked.tables.changes.rect(columns, rows)
+            );
+        }
+        assert_same_answers(whole, blocked, rng, 1000, what);
+        let bilinear = format!("{what}, bilinear");
+        assert_same_answers(bilinear_whole, bilinear_blocked, rng, 1000, &bilinear);
+        // A tree's boxes: dyadic squares, whole blocks on a map whose sides are powers of two
+        // (the one-look-up paths of constancy and mass).
+        for (whole, blocked) in [(whole, blocked), (bilinear_whole, bilinear_blocked)] {
+            for depth in 0..7u32 {
+                let side = 1.0 / f64::from(1u32 << depth);
+                for k in 0..(1u32 << (2 * depth)).min(256) {
+                    let cell = DVec2::new(f64::from(k % (1 << depth)), f64::from(k >> depth));
+                    let min = cell * side;
+                    assert_eq!(
+                        (
+                            whole.is_constant_over(min, side),
+                            whole.quarter_probabilities(min, side)
+                        ),
+                        (
+                            blocked.is_constant_over(min, side),
+                            blocked.quarter_probabilities(min, side)
+                        ),
+                        "{what}, box {min} {side}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The sizes the blocked tables are checked at: sides under a block, odd, powers of two.
+    const SIZES: [(usize, usize); 6] =
+        [(130, 67), (64, 128), (257, 191), (20, 300), (5, 3), (9, 8)];
+
     /// Each level of a family, blocked, answers every question exactly as the map of that
-    /// level's values stored whole: the tables at every corner, texel and block of the
-    /// pyramid, random rectangles, and the masses, constancy, placements, bounds and footprint
-    /// integrals of random boxes and footprints, bit for bit; a level of zeros is refused as
-    /// [`DensityMapError::Empty`] as the map of its values is. Sizes with sides under a
-    /// block, odd, powers of two.
+    /// level's values stored whole (`assert_blocked_answers_as_whole`), in its stated bytes;
+    /// a level of zeros is refused as [`DensityMapError::Empty`] as the map of its values is.
     #[test]
     fn blocked_levels_answer_what_their_own_maps_answer() {
-        for (width, height, levels, seed) in [
-            (130, 67, 6, 1),
-            (64, 128, 3, 2),
-            (257, 191, 8, 3),
-            (20, 300, 2, 4),
-            (5, 3, 3, 5),
-            (9, 8, 64, 6),
-        ] {
+        for ((width, height), (levels, seed)) in
+            SIZES
+                .into_iter()
+                .zip([(6, 1), (3, 2), (8, 3), (2, 4), (3, 5), (64, 6)])
+        {
             let texels = family(width, height, levels, seed);
             let shared = Arc::new(
                 LevelTexels::new(width, height, levels, |k| texels[k]).expect("a valid family"),
@@ -336,104 +428,58 @@ mod tests {
                     })
                     .collect();
                 let own = DensityMap::with_layout(width, height, &values, MapFilter::Nearest, None);
-                let blocked = DensityMap::roughness_level(&shared, level, MapFilter::Nearest);
-                let (own, blocked) = match (own, blocked) {
-                    (Ok(own), Ok(blocked)) => (own, blocked),
-                    (Err(DensityMapError::Empty), Err(DensityMapError::Empty)) => continue,
+                let blocked = MapFilter::ALL
+                    .map(|filter| DensityMap::roughness_level(&shared, level, filter));
+                let blocked = match (own, blocked) {
+                    (Ok(_), [Ok(nearest), Ok(bilinear)]) => [nearest, bilinear],
+                    (Err(DensityMapError::Empty), [Err(DensityMapError::Empty), _]) => continue,
                     (own, blocked) => panic!("level {level}: {own:?} against {blocked:?}"),
                 };
-                let whole = DensityMap::with_layout(
-                    width,
-                    height,
-                    &values,
-                    MapFilter::Nearest,
-                    Some(Layout::Whole),
-                )
-                .unwrap();
                 assert_eq!(
-                    blocked.heap_bytes(),
+                    blocked[0].heap_bytes(),
                     DensityMap::roughness_level_bytes(width, height)
                 );
-                assert_eq!((own.mean, own.uniform), (blocked.mean, blocked.uniform));
-                assert_eq!(own.max(), blocked.max());
-                assert_eq!(own.texels(), blocked.texels());
-                for j in 0..=height {
-                    for i in 0..=width {
-                        assert_eq!(whole.tables.sums.at(i, j), blocked.tables.sums.at(i, j));
-                        assert_eq!(
-                            whole.tables.changes.at(i, j),
-                            blocked.tables.changes.at(i, j)
-                        );
-                        if i < width && j < height {
-                            let value = fixed_point(values[(height - 1 - j) * width + i]);
-                            assert_eq!(blocked.tables.sums.cell(i, j), value);
-                        }
-                    }
-                }
-                for (level, (w, h)) in MaxPyramid::sizes(width, height).into_iter().enumerate() {
-                    for j in 0..h {
-                        for i in 0..w {
-                            let level = level + super::super::tables::FIRST_MAX_LEVEL;
-                            assert_eq!(
-                                whole.block_max(level, i, j),
-                                blocked.block_max(level, i, j),
-                                "block ({i}, {j}) of level {level}"
-                            );
-                        }
-                    }
-                }
+                assert!(blocked[0].level_texels().is_some());
                 let mut rng = TeaRng::new([seed, level as u32, 6, 7], 0, 8);
-                for _ in 0..5000 {
-                    let [a, b] = unit_pair(rng.next_bits());
-                    let [c, d] = unit_pair(rng.next_bits());
-                    let span = |u: f64, v: f64, n: usize| {
-                        let first = (u * n as f64) as usize;
-                        let length = ((v * v) * (n - first + 1) as f64) as usize;
-                        (first, (first + length).min(n))
-                    };
-                    let (columns, rows) = (span(a, c, width), span(b, d, height));
-                    assert_eq!(
-                        whole.tables.sums.rect(columns, rows),
-                        blocked.tables.sums.rect(columns, rows),
-                        "{columns:?} x {rows:?}"
-                    );
-                    assert_eq!(
-                        whole.tables.changes.rect(columns, rows),
-                        blocked.tables.changes.rect(columns, rows)
-                    );
-                }
-                let bilinear = (
-                    DensityMap::with_layout(width, height, &values, MapFilter::Bilinear, None)
-                        .unwrap(),
-                    DensityMap::roughness_level(&shared, level, MapFilter::Bilinear).unwrap(),
+                let what = format!("level {level}");
+                assert_blocked_answers_as_whole(
+                    (width, height),
+                    &values,
+                    &blocked,
+                    &mut rng,
+                    &what,
                 );
-                assert_same_answers(&own, &blocked, &mut rng, 1000, &format!("level {level}"));
-                let what = format!("level {level}, bilinear");
-                assert_same_answers(&bilinear.0, &bilinear.1, &mut rng, 1000, &what);
-                // A tree's boxes: dyadic squares, whole blocks on a map whose sides are powers
-                // of two (the one-look-up paths of constancy and mass).
-                for (own, blocked) in [(&own, &blocked), (&bilinear.0, &bilinear.1)] {
-                    for depth in 0..7u32 {
-                        let side = 1.0 / f64::from(1u32 << depth);
-                        for k in 0..(1u32 << (2 * depth)).min(256) {
-                            let cell =
-                                DVec2::new(f64::from(k % (1 << depth)), f64::from(k >> depth));
-                            let min = cell * side;
-                            assert_eq!(
-                                (
-                                    own.is_constant_over(min, side),
-                                    own.quarter_probabilities(min, side)
-                                ),
-                                (
-                                    blocked.is_constant_over(min, side),
-                                    blocked.quarter_probabilities(min, side)
-                                ),
-                                "level {level}, box {min} {side}"
-                            );
-                        }
-                    }
-                }
             }
+        }
+    }
+
+    /// A map of its own stored blocked (its texels in 33 bits, `LevelTexels::single`; what
+    /// maps of 2²² texels and more take) answers every question exactly as the same map
+    /// stored whole (`assert_blocked_answers_as_whole`), d = 1 (q = 2³², the 33rd bit)
+    /// included, and holds the bytes [`Layout::Blocked`] counts, its texels with it.
+    #[test]
+    fn blocked_maps_of_their_own_answer_what_whole_tables_answer() {
+        for (seed, (width, height)) in (1..).zip(SIZES) {
+            let values: Vec<f64> = family(width, height, 2, seed)
+                .into_iter()
+                .map(|(_, [a, _])| a)
+                .collect();
+            assert!(values.contains(&1.0) && values.contains(&0.0));
+            let blocked = MapFilter::ALL.map(|filter| {
+                DensityMap::with_layout(width, height, &values, filter, Some(Layout::Blocked))
+                    .unwrap()
+            });
+            let occupancy = super::super::MapOccupancy::of_values(width, height, &values);
+            let pyramid = MaxPyramid::sizes(width, height);
+            assert_eq!(
+                blocked[0].heap_bytes(),
+                Layout::Blocked.bytes(width, height, &occupancy, &pyramid)
+            );
+            assert!(blocked[0].level_texels().is_none());
+            assert_eq!(blocked[0].heap_bytes_with_texels(), blocked[0].heap_bytes());
+            let mut rng = TeaRng::new([seed, 11, 6, 7], 0, 8);
+            let what = format!("{width} x {height}");
+            assert_blocked_answers_as_whole((width, height), &values, &blocked, &mut rng, &what);
         }
     }
 }

@@ -12,6 +12,11 @@
 //! A texel's entry: its lower level k (6 bits; [`MAX_LEVELS`] levels at most), its value q on
 //! level k and q′ on level k + 1, each a fixed-point value in [0, 2³²] (33 bits). The 72 bits
 //! are a `u64` (q and the low 31 bits of q′) and a `u8` (k and the two high bits of q′).
+//!
+//! A large map of its own (a density map of more than [`super::DensityMap`]'s
+//! `BLOCKED_FROM_TEXELS` texels, `tables.rs`) is a family of one level stored in 33 bits a
+//! texel ([`LevelTexels::single`]): q's low 32 bits in a `u32` and its 33rd (set only for
+//! d = 1, q = 2³²) in a bit set, about 4.1 bytes a texel, with the same tables over blocks.
 
 use super::{DensityMapError, fixed_point};
 
@@ -34,10 +39,26 @@ pub struct LevelTexels {
     width: usize,
     height: usize,
     levels: usize,
-    /// By texel (i, j), j from v = 0, at j·W + i: q on the lower level | q′'s low 31 bits << 33.
-    words: Vec<u64>,
-    /// By texel: the lower level | q′'s two high bits << 6.
-    tags: Vec<u8>,
+    storage: Storage,
+}
+
+/// How a family holds its texels, by texel (i, j), j from v = 0, at j·W + i.
+#[derive(Clone, PartialEq)]
+enum Storage {
+    /// Two levels a texel, 9 bytes.
+    Pairs {
+        /// q on the lower level | q′'s low 31 bits << 33.
+        words: Vec<u64>,
+        /// The lower level | q′'s two high bits << 6.
+        tags: Vec<u8>,
+    },
+    /// One level, a map's own texels ([`LevelTexels::single`]), 33 bits.
+    Single {
+        /// q's low 32 bits.
+        low: Vec<u32>,
+        /// q's 33rd bit, texel t at bit t mod 64 of word t / 64.
+        high: Vec<u64>,
+    },
 }
 
 impl std::fmt::Debug for LevelTexels {
@@ -56,6 +77,42 @@ impl LevelTexels {
     #[must_use]
     pub fn bytes_for(width: usize, height: usize) -> usize {
         9 * width * height
+    }
+
+    /// The bytes a [`Self::single`] map of `width` × `height` texels holds: 33 bits a texel.
+    pub(super) fn single_bytes_for(width: usize, height: usize) -> usize {
+        let texels = width * height;
+        4 * texels + 8 * texels.div_ceil(64)
+    }
+
+    /// One map's own texels, a family of one level in 33 bits a texel: `q(i, j)` gives texel
+    /// (i, j)'s fixed-point value (j from v = 0), at most 2³² (d = 1). The caller has checked
+    /// the size and the values (`DensityMap::with_filter`).
+    pub(super) fn single(width: usize, height: usize, q: &dyn Fn(usize, usize) -> u64) -> Self {
+        let texels = width * height;
+        let mut low = Vec::with_capacity(texels);
+        let mut high = vec![0u64; texels.div_ceil(64)];
+        for j in 0..height {
+            for i in 0..width {
+                let value = q(i, j);
+                debug_assert!(value <= 1 << 32);
+                let at = j * width + i;
+                high[at >> 6] |= (value >> 32) << (at & 63);
+                low.push(value as u32);
+            }
+        }
+        Self {
+            width,
+            height,
+            levels: 1,
+            storage: Storage::Single { low, high },
+        }
+    }
+
+    /// Whether these are one map's own texels ([`Self::single`]), not a family its levels
+    /// share.
+    pub(super) fn is_single(&self) -> bool {
+        matches!(self.storage, Storage::Single { .. })
     }
 
     /// The texels of `levels` maps of `width` × `height` texels: `texel(k)` gives texel k's
@@ -112,8 +169,7 @@ impl LevelTexels {
             width,
             height,
             levels,
-            words,
-            tags,
+            storage: Storage::Pairs { words, tags },
         })
     }
 
@@ -129,19 +185,30 @@ impl LevelTexels {
         self.levels
     }
 
-    /// The heap memory it holds, in bytes ([`Self::bytes_for`] its size).
+    /// The heap memory it holds, in bytes ([`Self::bytes_for`] its size; a single map's
+    /// texels, `single_bytes_for`).
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
-        8 * self.words.len() + self.tags.len()
+        match &self.storage {
+            Storage::Pairs { words, tags } => 8 * words.len() + tags.len(),
+            Storage::Single { low, high } => 4 * low.len() + 8 * high.len(),
+        }
     }
 
     /// The fixed-point value q of texel (i, j) (j from v = 0) on `level`.
     #[inline]
     pub(super) fn fixed(&self, level: usize, i: usize, j: usize) -> u64 {
         let at = j * self.width + i;
-        let tag = self.tags[at];
+        let (words, tags) = match &self.storage {
+            Storage::Pairs { words, tags } => (words, tags),
+            Storage::Single { low, high } if level == 0 => {
+                return u64::from(low[at]) | (((high[at >> 6] >> (at & 63)) & 1) << 32);
+            }
+            Storage::Single { .. } => return 0,
+        };
+        let tag = tags[at];
         let lower = usize::from(tag & 63);
-        let word = self.words[at];
+        let word = words[at];
         if level == lower {
             word & VALUE_MASK
         } else if level == lower + 1 {

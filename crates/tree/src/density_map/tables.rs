@@ -1,5 +1,5 @@
-//! Where a density map keeps its tables: whole, or in tiles that leave out the map's empty
-//! regions.
+//! Where a density map keeps its tables: whole, in tiles that leave out the map's empty
+//! regions, or (a large map) over blocks of its own texels.
 //!
 //! A map's tables are summed-area tables (of its fixed-point values q and of its value
 //! changes) and a pyramid of maxima. Whole, they cost about 12.7 bytes a texel whatever the
@@ -37,9 +37,12 @@
 //!
 //! A roughness level may instead keep its tables over blocks of 8 × 8 texels, reading its
 //! texels from a family it shares with the other levels ([`PrefixTable::Blocked`],
-//! `blocked.rs`); a material chooses that for all its levels at once.
+//! `blocked.rs`); a material chooses that for all its levels at once. A map of
+//! [`BLOCKED_FROM_TEXELS`] texels or more may keep the same tables over its own texels, held
+//! in 33 bits ([`Layout::Blocked`]).
 //!
-//! A map is tiled where that saves at least a third of its bytes ([`Layout::choose`]); both
+//! Below [`BLOCKED_FROM_TEXELS`] texels a map is tiled where that saves at least a third of its
+//! bytes, and from there on it takes the layout of fewest bytes ([`Layout::choose`]); the
 //! layouts' bytes are functions of the map's size and of which tiles hold a non-zero value
 //! ([`MapOccupancy`]), so a material can count a map's bytes before building it.
 
@@ -203,6 +206,11 @@ pub(super) fn stored_as_nonzero(value: f64) -> bool {
     value >= 1.0 / 8_589_934_592.0
 }
 
+/// Maps of at least this many texels (2048 × 2048, 53 MB of tables whole) take the layout of
+/// fewest bytes, blocked ones included; smaller maps the faster whole tables unless tiles
+/// save a third (see [`Layout::choose`]).
+pub(super) const BLOCKED_FROM_TEXELS: usize = 1 << 22;
+
 /// Where a map keeps its tables.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Layout {
@@ -210,17 +218,27 @@ pub(super) enum Layout {
     Whole,
     /// Summed-area tables and the pyramid's fine levels in tiles (see the module docs).
     Tiled,
+    /// Its own texels in 33 bits ([`LevelTexels::single`]) and tables over 8 × 8 blocks
+    /// (`blocked.rs`): about 4.5 bytes a texel.
+    Blocked,
 }
 
 impl Layout {
-    /// The layout of a `width` × `height` map with `occupancy`, and its bytes: tiled where
-    /// that saves at least a third of the bytes, whole otherwise (`pyramid`: the pyramid's
-    /// block grids, finest first). A look-up in a stored tile reads two entries (the tile's
-    /// place, then the entry) instead of one, and one in an empty tile four: on a 1024² density
-    /// map with a few empty tiles (0.6% fewer bytes tiled) sphere-lights queries took 1.05×
+    /// The layout of a `width` × `height` map with `occupancy`, and its bytes (`pyramid`: the
+    /// pyramid's block grids, finest first).
+    ///
+    /// Below [`BLOCKED_FROM_TEXELS`] texels: tiled where that saves at least a third of the
+    /// bytes, whole otherwise. A look-up in a stored tile reads two entries (the tile's place,
+    /// then the entry) instead of one, and one in an empty tile four: on a 1024² density map
+    /// with a few empty tiles (0.6% fewer bytes tiled) sphere-lights queries took 1.05×
     /// (nearest) and 1.34× (bilinear) their time under whole tables, so a map is tiled only
     /// for a large saving, as a roughness level's map gives (`cargo bench -p glint-benches
     /// --bench tree -- map_1024`: `…_level` against `…_level_whole`).
+    ///
+    /// From [`BLOCKED_FROM_TEXELS`] texels on, memory decides: the layout of fewest bytes of
+    /// the three. Blocked tables read texels where a box cuts its blocks, so a query costs
+    /// about what it costs under whole tables where boxes are large and up to a few percent
+    /// more on frames of boxes of a few texels (docs/performance.md, "Production-size maps").
     pub(super) fn choose(
         width: usize,
         height: usize,
@@ -229,6 +247,17 @@ impl Layout {
     ) -> (Self, usize) {
         let whole = Self::Whole.bytes(width, height, occupancy, pyramid);
         let tiled = Self::Tiled.bytes(width, height, occupancy, pyramid);
+        if width * height >= BLOCKED_FROM_TEXELS {
+            let blocked = Self::Blocked.bytes(width, height, occupancy, pyramid);
+            return [
+                (Self::Blocked, blocked),
+                (Self::Tiled, tiled),
+                (Self::Whole, whole),
+            ]
+            .into_iter()
+            .min_by_key(|&(_, bytes)| bytes)
+            .expect("three layouts");
+        }
         if 3 * tiled <= 2 * whole {
             (Self::Tiled, tiled)
         } else {
@@ -269,6 +298,9 @@ impl Layout {
                     + TiledPrefix::<u32>::bytes(width, height, changing)
                     + u64::BYTES * maxima
                     + 4 * occupancy.occupied.len()
+            }
+            Self::Blocked => {
+                LevelTexels::single_bytes_for(width, height) + Tables::blocked_bytes(width, height)
             }
         }
     }
@@ -720,6 +752,9 @@ impl Tables {
             Layout::choose(width, height, occupancy, &MaxPyramid::sizes(width, height)).0
         });
         let (mut sums, mut changes) = match layout {
+            Layout::Blocked => {
+                return Self::blocked(&Arc::new(LevelTexels::single(width, height, q)), 0);
+            }
             Layout::Whole => (
                 PrefixBuilder::whole(width, height),
                 PrefixBuilder::whole(width, height),
@@ -768,7 +803,8 @@ impl Tables {
         }
     }
 
-    /// The tables of `level` of the family `texels`, blocked (`blocked.rs`).
+    /// The tables of `level` of the family `texels`, blocked (`blocked.rs`); of a map's own
+    /// texels where the family is [`LevelTexels::single`].
     pub(super) fn blocked(texels: &Arc<LevelTexels>, level: usize) -> Self {
         Self {
             sums: PrefixTable::Blocked(Box::new(BlockedPrefix::new(texels, level))),
@@ -784,9 +820,16 @@ impl Tables {
             + MaxPyramid::blocked_bytes(width, height)
     }
 
-    /// The heap memory they hold, in bytes.
+    /// The heap memory they hold, in bytes, a map's own texels ([`LevelTexels::single`])
+    /// included, not a family of levels it shares.
     pub(super) fn heap_bytes(&self) -> usize {
-        self.sums.heap_bytes() + self.changes.heap_bytes() + self.maxima.heap_bytes()
+        let own_texels = match &self.sums {
+            PrefixTable::Blocked(table) if table.texels().is_single() => {
+                table.texels().heap_bytes()
+            }
+            _ => 0,
+        };
+        own_texels + self.sums.heap_bytes() + self.changes.heap_bytes() + self.maxima.heap_bytes()
     }
 
     /// The bytes the tables of a map with `occupancy` will hold (0 for a map of zeros, which
