@@ -143,15 +143,19 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
             }
         }
     }
+    // Every kind with the default pdf (the 7-point cubature here) at every angle, and with the
+    // paper's QMC rule of many points at 45°.
+    let rules = angles
+        .iter()
+        .map(|&theta_i| (theta_i, PdfQuadrature::default()))
+        .chain([(angles[1], PdfQuadrature::QuasiMonteCarlo)]);
     for kind in DistributionKind::ALL {
-        for &theta_i in &angles {
+        for (theta_i, rule) in rules.clone() {
             let mut parameters =
                 GlintParameters::new(Microfacet::new(kind, 0.15, 0.15).expect("valid roughness"));
             parameters.gamma_radians = 3f64.to_radians();
-            // The default pdf (the 7-point cubature here) for Beckmann, the paper's QMC rule with
-            // many points for GGX.
-            if kind == DistributionKind::Ggx {
-                parameters.pdf_quadrature = PdfQuadrature::QuasiMonteCarlo;
+            if rule == PdfQuadrature::QuasiMonteCarlo {
+                parameters.pdf_quadrature = rule;
                 parameters.pdf_points = 1024;
             }
             cases.push(SamplerCase {
@@ -173,38 +177,32 @@ pub fn sampler_cases() -> Vec<SamplerCase> {
 }
 
 /// The glint sampler where the cone is wide against the lobe (γ up to 60°, α down to 10⁻⁴) or
-/// the lobe extremely anisotropic: its pdf there comes from the slope-space rule. (An
-/// anisotropic lobe of α_x = 10⁻⁴ is a line of ω′, so its pdf is a band 2γ wide: γ = 10° keeps
-/// the band wide against the bins; at 3° the bins' midpoint rule misses 3% of its mass.)
+/// the lobe extremely anisotropic, as each kind states them
+/// ([`glint_brdf::KindChecks::sampler_cones`]):
+/// its pdf there comes from the slope-space rule. (An anisotropic lobe of α_x = 10⁻⁴ is a line
+/// of ω′, so its pdf is a band 2γ wide: γ = 10° keeps the band wide against the bins; at 3°
+/// the bins' midpoint rule misses 3% of its mass.)
 fn wide_cone_cases(angles: &[f64]) -> Vec<SamplerCase> {
-    use DistributionKind::{AshikhminShirley, Beckmann, Ggx};
-    // (distribution, α_x, α_y, γ in degrees, cap radius in degrees for narrow lobes)
-    let materials = [
-        (Beckmann, 0.01, 0.01, 20.0, None),
-        (Ggx, 0.01, 0.01, 60.0, None),
-        (Ggx, 0.003, 0.003, 10.0, Some(15.0)),
-        (Beckmann, 1e-4, 1e-4, 1.0, Some(1.5)),
-        (Ggx, 1e-4, 0.5, 10.0, None),
-        (Beckmann, 0.3, 1e-4, 8.0, None),
-        (AshikhminShirley, 0.01, 0.04, 20.0, None),
-    ];
     let mut cases = Vec::new();
-    for (kind, ax, ay, gamma_degrees, cap_degrees) in materials {
-        for &theta_i in angles {
-            let distribution = Microfacet::new(kind, ax, ay).expect("valid roughness");
-            let mut parameters = GlintParameters::new(distribution);
-            parameters.gamma_radians = f64::to_radians(gamma_degrees);
-            cases.push(SamplerCase {
-                name: format!(
-                    "glint {kind:?} α ({ax}, {ay}) γ {gamma_degrees}° θ {:.0}°",
-                    theta_i.to_degrees()
-                ),
-                sampler: Sampler::Glint(Box::new(
-                    DiscreteBrdf::new(parameters).expect("valid material"),
-                )),
-                theta_i,
-                cap: cap_degrees.map(f64::to_radians),
-            });
+    for kind in DistributionKind::ALL {
+        for cone in kind.checks().sampler_cones {
+            let ((ax, ay), gamma_degrees) = (cone.alpha, cone.gamma_degrees);
+            for &theta_i in angles {
+                let distribution = Microfacet::new(kind, ax, ay).expect("valid roughness");
+                let mut parameters = GlintParameters::new(distribution);
+                parameters.gamma_radians = f64::to_radians(gamma_degrees);
+                cases.push(SamplerCase {
+                    name: format!(
+                        "glint {kind:?} α ({ax}, {ay}) γ {gamma_degrees}° θ {:.0}°",
+                        theta_i.to_degrees()
+                    ),
+                    sampler: Sampler::Glint(Box::new(
+                        DiscreteBrdf::new(parameters).expect("valid material"),
+                    )),
+                    theta_i,
+                    cap: cone.cap_degrees.map(f64::to_radians),
+                });
+            }
         }
     }
     cases

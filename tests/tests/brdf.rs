@@ -114,16 +114,13 @@ fn samplers_match_their_pdfs() {
 /// it (before the slope-space rule: 7.6 for Beckmann α = 0.01, γ = 20°; 2.6·10⁷ at γ = 40°).
 #[test]
 fn glint_sampler_weights_average_to_the_albedo() {
-    let cases = [
-        (DistributionKind::Beckmann, 0.01, 0.01, 20.0),
-        (DistributionKind::Beckmann, 0.01, 0.01, 40.0),
-        (DistributionKind::Ggx, 0.01, 0.01, 60.0),
-        (DistributionKind::Beckmann, 0.003, 0.003, 10.0),
-        (DistributionKind::Ggx, 1e-4, 0.3, 5.0),
-        (DistributionKind::Beckmann, 0.1, 0.1, 1.0),
-        // Not radial in scaled slopes: the slope-space pdf's ray rule.
-        (DistributionKind::AshikhminShirley, 0.01, 0.04, 20.0),
-    ];
+    // Each kind's own cones (`KindChecks::albedo_cones`).
+    let cases = DistributionKind::ALL.into_iter().flat_map(|kind| {
+        kind.checks()
+            .albedo_cones
+            .iter()
+            .map(move |cone| (kind, cone.alpha.0, cone.alpha.1, cone.gamma_degrees))
+    });
     let samples = 200_000;
     for (kind, ax, ay, gamma_degrees) in cases {
         let mut parameters = GlintParameters::new(Microfacet::new(kind, ax, ay).unwrap());
@@ -185,52 +182,15 @@ impl Moments {
 #[test]
 fn discrete_brdf_converges_to_the_smooth_one() {
     let mut scratch = QueryScratch::new();
-    // (distribution, α_x, α_y, γ°, θ_i, θ_o, φ_o): on and off the specular peak, grazing,
-    // anisotropic, wide cones.
-    let cases = [
-        (DistributionKind::Beckmann, 0.2, 0.2, 2.0, 0.3, 0.3, PI),
-        (
-            DistributionKind::Beckmann,
-            0.2,
-            0.2,
-            2.0,
-            0.5,
-            0.2,
-            PI + 0.3,
-        ),
-        (DistributionKind::Beckmann, 0.2, 0.2, 2.0, 1.3, 1.2, PI),
-        (
-            DistributionKind::Beckmann,
-            0.2,
-            0.2,
-            2.0,
-            0.2,
-            0.6,
-            PI + 0.5,
-        ),
-        (DistributionKind::Ggx, 0.5, 0.5, 5.0, 0.7, 0.4, PI + 0.8),
-        (DistributionKind::Ggx, 0.1, 0.3, 1.0, 0.4, 0.35, PI + 0.1),
-        (DistributionKind::Beckmann, 0.05, 0.05, 0.5, 1.0, 1.0, PI),
-        // The paper's anisotropic ornament, on and off the peak.
-        (
-            DistributionKind::AshikhminShirley,
-            0.1,
-            0.4,
-            5.0,
-            0.5,
-            0.5,
-            PI,
-        ),
-        (
-            DistributionKind::AshikhminShirley,
-            0.1,
-            0.4,
-            5.0,
-            0.4,
-            0.7,
-            PI + 0.6,
-        ),
-    ];
+    // Each kind's own cases (`KindChecks::convergence`): on and off the specular peak,
+    // grazing, anisotropic, wide cones.
+    let cases = DistributionKind::ALL.into_iter().flat_map(|kind| {
+        kind.checks().convergence.iter().map(move |case| {
+            let (theta_i, theta_o, phi_o) = case.angles;
+            let ((ax, ay), gamma) = (case.alpha, case.gamma_degrees);
+            (kind, ax, ay, gamma, theta_i, theta_o, phi_o)
+        })
+    });
     for (kind, ax, ay, gamma_deg, theta_i, theta_o, phi_o) in cases {
         let d = Microfacet::new(kind, ax, ay).unwrap();
         let wi = direction(theta_i, 0.0);

@@ -18,7 +18,9 @@
 //!   tree's law excess walks one octant or two on that promise;
 //! - Λ is Smith's for this D: (1 + Λ(ω)) cos θ = ∫ D(m) max(0, ω·m) dm;
 //! - [`Microfacet::sample_normal`] draws from p, and the particle density bound holds;
-//! - its name is lowercase ASCII letters and `_` (scene files, eval, C and Python use it).
+//! - its name is lowercase ASCII letters and `_` (scene files, eval, C and Python use it);
+//! - it states the settings its checks need beyond the suites' common ones
+//!   ([`KindChecks`]: wide cones, an anisotropic lobe, convergence cases).
 //!
 //! Nothing else is asked of a kind: how α maps to its shape (D(n) = 1/(π α_x α_y) for the
 //! three kinds here) is its own, checked in its own file. Every loop over the table reads
@@ -129,6 +131,87 @@ impl DistributionKind {
     pub(crate) fn radial_law(self) -> Option<RadialLaw> {
         with_model!(self, M => M::RADIAL)
     }
+
+    /// The settings the test suites check this kind at, beyond the settings they share
+    /// ([`KindChecks`]).
+    #[must_use]
+    pub fn checks(self) -> KindChecks {
+        with_model!(self, M => M::CHECKS)
+    }
+}
+
+/// The settings where a kind's checks need more than the suites' common ones, stated in the
+/// kind's own file so that every suite that loops over [`DistributionKind::ALL`] reads them
+/// from there: the glint sampler's χ² test and `validate`'s samplers (`sampler_cones`), the
+/// glint sampler's mean weight against the albedo (`albedo_cones`), and f̂'s mean against the
+/// smooth BRDF (`convergence`). Cones should include one wide against the lobe (its pdf takes
+/// the slope-space rule) and an anisotropic lobe; a new kind states its own.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KindChecks {
+    /// The glint sampler's χ² cases where the cone is wide against the lobe or the lobe
+    /// extremely anisotropic, at incidence from the normal to 85°.
+    pub sampler_cones: &'static [ConeCheck],
+    /// The glint sampler's smooth weight f·cos θ_o / pdf, whose mean is the albedo.
+    pub albedo_cones: &'static [ConeCheck],
+    /// The mean of f̂ over footprints against the smooth BRDF convolved with the cone.
+    pub convergence: &'static [ConvergenceCheck],
+}
+
+/// A material and cone for a sampler check.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConeCheck {
+    /// (α_x, α_y).
+    pub alpha: (f64, f64),
+    /// The cone's half-angle γ, in degrees.
+    pub gamma_degrees: f64,
+    /// For a lobe narrow against the χ² test's bins: the radius, in degrees, of the cap around
+    /// the lobe that the test bins finely (`None`: the whole hemisphere).
+    pub cap_degrees: Option<f64>,
+}
+
+impl ConeCheck {
+    /// Roughness (α_x, α_y) under a cone of half-angle γ (degrees), binned over the whole
+    /// hemisphere.
+    #[must_use]
+    pub const fn new(alpha: (f64, f64), gamma_degrees: f64) -> Self {
+        Self {
+            alpha,
+            gamma_degrees,
+            cap_degrees: None,
+        }
+    }
+
+    /// The same, binned finely over a cap of `degrees` around the lobe.
+    #[must_use]
+    pub const fn capped(self, degrees: f64) -> Self {
+        Self {
+            cap_degrees: Some(degrees),
+            ..self
+        }
+    }
+}
+
+/// A material, cone and pair of directions for the convergence check.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConvergenceCheck {
+    /// (α_x, α_y).
+    pub alpha: (f64, f64),
+    /// The cone's half-angle γ, in degrees.
+    pub gamma_degrees: f64,
+    /// θ_i, θ_o and φ_o in radians (ω_i at φ = 0).
+    pub angles: (f64, f64, f64),
+}
+
+impl ConvergenceCheck {
+    /// Roughness (α_x, α_y), a cone of half-angle γ (degrees), and θ_i, θ_o, φ_o (radians).
+    #[must_use]
+    pub const fn new(alpha: (f64, f64), gamma_degrees: f64, angles: (f64, f64, f64)) -> Self {
+        Self {
+            alpha,
+            gamma_degrees,
+            angles,
+        }
+    }
 }
 
 impl std::fmt::Display for DistributionKind {
@@ -157,6 +240,8 @@ pub(crate) trait Model {
     const RADIAL: Option<RadialLaw>;
     /// Whether [`Model::sample_visible_normal`] is implemented.
     const SAMPLES_VISIBLE_NORMALS: bool;
+    /// The settings the test suites check it at ([`KindChecks`]).
+    const CHECKS: KindChecks;
 
     /// D(m) for a unit normal m with m_z > 0.
     fn d(alpha: (f64, f64), m: DVec3) -> f64;
@@ -566,6 +651,40 @@ mod tests {
                 (got - expected).abs() < 2e-15,
                 "erf({x}) = {got}, expected {expected}"
             );
+        }
+    }
+
+    /// Every kind states the settings its checks need (`KindChecks`): a sampler cone wide
+    /// against the lobe (γ > 4α at normal incidence, beyond the cone rules' reach, so the
+    /// slope-space rule answers), an anisotropic lobe, an albedo cone and a convergence case,
+    /// each a valid material.
+    #[test]
+    fn every_kind_states_the_settings_its_checks_need() {
+        for kind in DistributionKind::ALL {
+            let checks = kind.checks();
+            let wide =
+                |c: &ConeCheck| c.gamma_degrees.to_radians() > 4.0 * c.alpha.0.max(c.alpha.1);
+            assert!(
+                checks.sampler_cones.iter().any(wide),
+                "{kind:?}: no wide cone"
+            );
+            let anisotropic = checks
+                .sampler_cones
+                .iter()
+                .map(|c| c.alpha)
+                .chain(checks.convergence.iter().map(|c| c.alpha))
+                .any(|(ax, ay)| ax != ay);
+            assert!(anisotropic, "{kind:?}: no anisotropic lobe");
+            assert!(!checks.albedo_cones.is_empty() && !checks.convergence.is_empty());
+            let alphas = (checks.sampler_cones.iter().chain(checks.albedo_cones))
+                .map(|c| c.alpha)
+                .chain(checks.convergence.iter().map(|c| c.alpha));
+            for (ax, ay) in alphas {
+                assert!(
+                    Microfacet::new(kind, ax, ay).is_ok(),
+                    "{kind:?} ({ax}, {ay})"
+                );
+            }
         }
     }
 

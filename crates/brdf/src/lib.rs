@@ -65,7 +65,9 @@ pub mod surface_maps;
 
 pub use bxdf::{Bxdf, BxdfSample};
 pub use discrete::{DiscreteBrdf, GlintParameters, NegligibleTestConstants};
-pub use distribution::{DistributionKind, Microfacet, NormalSampling};
+pub use distribution::{
+    ConeCheck, ConvergenceCheck, DistributionKind, KindChecks, Microfacet, NormalSampling,
+};
 pub use error::BrdfError;
 pub use fresnel::Fresnel;
 pub use glam::{DVec2, DVec3};

@@ -51,9 +51,11 @@
 
 use std::sync::Arc;
 
+use std::f64::consts::PI;
+
 use glam::DVec3;
 
-use super::{Model, RadialLaw};
+use super::{ConeCheck, ConvergenceCheck, KindChecks, Model, RadialLaw};
 
 mod smith;
 
@@ -72,7 +74,7 @@ pub(super) fn exponents((alpha_x, alpha_y): (f64, f64)) -> (f64, f64, f64) {
     (
         exponent(alpha_x),
         exponent(alpha_y),
-        1.0 / (std::f64::consts::PI * alpha_x * alpha_y),
+        1.0 / (PI * alpha_x * alpha_y),
     )
 }
 
@@ -90,6 +92,24 @@ pub(super) fn log_phong((e_x, e_y): (f64, f64), x2: f64, y2: f64) -> f64 {
 impl Model for AshikhminShirley {
     const RADIAL: Option<RadialLaw> = None;
     const SAMPLES_VISIBLE_NORMALS: bool = false;
+    // Not radial in scaled slopes: the slope-space pdf's ray rule; the paper's anisotropic
+    // ornament, on and off the peak.
+    const CHECKS: KindChecks = KindChecks {
+        sampler_cones: &[ConeCheck {
+            alpha: (0.01, 0.04),
+            gamma_degrees: 20.0,
+            cap_degrees: None,
+        }],
+        albedo_cones: &[ConeCheck {
+            alpha: (0.01, 0.04),
+            gamma_degrees: 20.0,
+            cap_degrees: None,
+        }],
+        convergence: &[
+            ConvergenceCheck::new((0.1, 0.4), 5.0, (0.5, 0.5, PI)),
+            ConvergenceCheck::new((0.1, 0.4), 5.0, (0.4, 0.7, PI + 0.6)),
+        ],
+    };
 
     fn d(alpha: (f64, f64), m: DVec3) -> f64 {
         let (e_x, e_y, c) = exponents(alpha);

@@ -7,9 +7,14 @@
 //!
 //! In scaled slopes the lobe is radial: P(ρ) = e^(−ρ²)/π ([`RadialLaw::Gaussian`]).
 
+use std::f64::consts::PI;
+
 use glam::DVec3;
 
-use super::{Model, RadialLaw, bisect, erf, normal_from_scaled_slope, scaled_slope2};
+use super::{
+    ConeCheck, ConvergenceCheck, KindChecks, Model, RadialLaw, bisect, erf,
+    normal_from_scaled_slope, scaled_slope2,
+};
 
 /// Beckmann's distribution.
 pub(crate) struct Beckmann;
@@ -17,15 +22,37 @@ pub(crate) struct Beckmann;
 impl Model for Beckmann {
     const RADIAL: Option<RadialLaw> = Some(RadialLaw::Gaussian);
     const SAMPLES_VISIBLE_NORMALS: bool = true;
+    // Wide cones against narrow and line-like lobes (the slope-space rule); on and off the
+    // specular peak, grazing.
+    const CHECKS: KindChecks = KindChecks {
+        sampler_cones: &[
+            ConeCheck::new((0.01, 0.01), 20.0),
+            ConeCheck::new((0.0001, 0.0001), 1.0).capped(1.5),
+            ConeCheck::new((0.3, 0.0001), 8.0),
+        ],
+        albedo_cones: &[
+            ConeCheck::new((0.01, 0.01), 20.0),
+            ConeCheck::new((0.01, 0.01), 40.0),
+            ConeCheck::new((0.003, 0.003), 10.0),
+            ConeCheck::new((0.1, 0.1), 1.0),
+        ],
+        convergence: &[
+            ConvergenceCheck::new((0.2, 0.2), 2.0, (0.3, 0.3, PI)),
+            ConvergenceCheck::new((0.2, 0.2), 2.0, (0.5, 0.2, PI + 0.3)),
+            ConvergenceCheck::new((0.2, 0.2), 2.0, (1.3, 1.2, PI)),
+            ConvergenceCheck::new((0.2, 0.2), 2.0, (0.2, 0.6, PI + 0.5)),
+            ConvergenceCheck::new((0.05, 0.05), 0.5, (1.0, 1.0, PI)),
+        ],
+    };
 
     fn d((alpha_x, alpha_y): (f64, f64), m: DVec3) -> f64 {
         let z2 = m.z * m.z;
         let slope2 = scaled_slope2((alpha_x, alpha_y), m);
         if z2 * z2 < f64::MIN_POSITIVE {
             // Near the horizon z⁴ underflows (0/0): e^(−s²)/z⁴ = e^(−s² − 4 ln z).
-            return (-slope2 - 4.0 * m.z.ln()).exp() / (std::f64::consts::PI * alpha_x * alpha_y);
+            return (-slope2 - 4.0 * m.z.ln()).exp() / (PI * alpha_x * alpha_y);
         }
-        (-slope2).exp() / (std::f64::consts::PI * alpha_x * alpha_y * z2 * z2)
+        (-slope2).exp() / (PI * alpha_x * alpha_y * z2 * z2)
     }
 
     /// D's formula is homogeneous of degree −4 in m: D(H) = D(h)/|H|⁴ without normalizing.
@@ -41,7 +68,7 @@ impl Model for Beckmann {
             return 0.0;
         }
         let a = w.z / projected_squared.sqrt();
-        0.5 * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * a * std::f64::consts::PI.sqrt())
+        0.5 * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * a * PI.sqrt())
     }
 
     /// Λ·z = p·(a(erf(a) − 1)/2 + e^(−a²)/(2√π)), a = z/p: Λ grows like 1/(2a√π) at the
@@ -53,8 +80,7 @@ impl Model for Beckmann {
         }
         let projected = projected_squared.sqrt();
         let a = w.z / projected;
-        projected
-            * (0.5 * a * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * std::f64::consts::PI.sqrt()))
+        projected * (0.5 * a * (erf(a) - 1.0) + (-a * a).exp() / (2.0 * PI.sqrt()))
     }
 
     /// P(t) = (1 + t)^{3/2} e^{−t/α_m²} / (π α_x α_y), whose logarithm's derivative
@@ -62,8 +88,7 @@ impl Model for Beckmann {
     fn particle_density_bound((alpha_x, alpha_y): (f64, f64), t_near: f64, t_far: f64) -> f64 {
         let alpha2 = alpha_x.max(alpha_y).powi(2);
         let t = (1.5 * alpha2 - 1.0).clamp(t_near, t_far);
-        (1.0 + t) * (1.0 + t).sqrt() * (-t / alpha2).exp()
-            / (std::f64::consts::PI * alpha_x * alpha_y)
+        (1.0 + t) * (1.0 + t).sqrt() * (-t / alpha2).exp() / (PI * alpha_x * alpha_y)
     }
 
     /// Gaussian slopes: radius √(−ln(1 − u₀)) in scaled slopes, stretched by (α_x, α_y).
@@ -92,7 +117,7 @@ impl Model for Beckmann {
         } else {
             1e8
         };
-        let sqrt_pi = std::f64::consts::PI.sqrt();
+        let sqrt_pi = PI.sqrt();
         let numerator = |x: f64| mu * 0.5 * (1.0 + erf(x)) + (-x * x).exp() / (2.0 * sqrt_pi);
         let upper = mu.min(6.0);
         let target = u[0] * numerator(upper);
@@ -115,7 +140,7 @@ mod tests {
     fn d_at_the_normal_is_one_over_pi_alpha_x_alpha_y() {
         for (alpha_x, alpha_y) in [(0.3, 0.1), (0.02, 0.02), (1.0, 0.5)] {
             let peak = Beckmann::d((alpha_x, alpha_y), DVec3::Z);
-            let expected = 1.0 / (std::f64::consts::PI * alpha_x * alpha_y);
+            let expected = 1.0 / (PI * alpha_x * alpha_y);
             assert!(
                 (peak - expected).abs() < 1e-12 * expected,
                 "{peak} against {expected}"

@@ -7,9 +7,14 @@
 //!
 //! In scaled slopes the lobe is radial: P(ρ) = 1/(π(1 + ρ²)²) ([`RadialLaw::Student`]).
 
+use std::f64::consts::PI;
+
 use glam::DVec3;
 
-use super::{Model, RadialLaw, normal_from_scaled_slope, scaled_slope2};
+use super::{
+    ConeCheck, ConvergenceCheck, KindChecks, Model, RadialLaw, normal_from_scaled_slope,
+    scaled_slope2,
+};
 
 /// The GGX distribution.
 pub(crate) struct Ggx;
@@ -17,6 +22,23 @@ pub(crate) struct Ggx;
 impl Model for Ggx {
     const RADIAL: Option<RadialLaw> = Some(RadialLaw::Student);
     const SAMPLES_VISIBLE_NORMALS: bool = true;
+    // The widest cone, a lobe narrow against the bins and an extremely anisotropic one;
+    // a rough lobe and an anisotropic one.
+    const CHECKS: KindChecks = KindChecks {
+        sampler_cones: &[
+            ConeCheck::new((0.01, 0.01), 60.0),
+            ConeCheck::new((0.003, 0.003), 10.0).capped(15.0),
+            ConeCheck::new((0.0001, 0.5), 10.0),
+        ],
+        albedo_cones: &[
+            ConeCheck::new((0.01, 0.01), 60.0),
+            ConeCheck::new((0.0001, 0.3), 5.0),
+        ],
+        convergence: &[
+            ConvergenceCheck::new((0.5, 0.5), 5.0, (0.7, 0.4, PI + 0.8)),
+            ConvergenceCheck::new((0.1, 0.3), 1.0, (0.4, 0.35, PI + 0.1)),
+        ],
+    };
 
     fn d((alpha_x, alpha_y): (f64, f64), m: DVec3) -> f64 {
         let z2 = m.z * m.z;
@@ -25,10 +47,10 @@ impl Model for Ggx {
             // them, z⁴(1 + s²/z²)² = (z² + q)², q = x²/α_x² + y²/α_y².
             let q = (m.x / alpha_x).powi(2) + (m.y / alpha_y).powi(2);
             let sum = z2 + q;
-            return 1.0 / (std::f64::consts::PI * alpha_x * alpha_y * sum * sum);
+            return 1.0 / (PI * alpha_x * alpha_y * sum * sum);
         }
         let slope2 = scaled_slope2((alpha_x, alpha_y), m);
-        let normalization = std::f64::consts::PI * alpha_x * alpha_y * z2 * z2;
+        let normalization = PI * alpha_x * alpha_y * z2 * z2;
         1.0 / (normalization * (1.0 + slope2) * (1.0 + slope2))
     }
 
@@ -56,7 +78,7 @@ impl Model for Ggx {
         let alpha2 = alpha_x.max(alpha_y).powi(2);
         let t = (3.0 * alpha2 - 4.0).clamp(t_near, t_far);
         let fall = 1.0 + t / alpha2;
-        (1.0 + t) * (1.0 + t).sqrt() / (fall * fall * (std::f64::consts::PI * alpha_x * alpha_y))
+        (1.0 + t) * (1.0 + t).sqrt() / (fall * fall * (PI * alpha_x * alpha_y))
     }
 
     /// The bivariate Student-like P22: radius √(u₀/(1 − u₀)) in scaled slopes, stretched by
@@ -79,7 +101,7 @@ impl Model for Ggx {
         };
         let t2 = v.cross(t1);
         let r = u[0].sqrt();
-        let phi = 2.0 * std::f64::consts::PI * u[1];
+        let phi = 2.0 * PI * u[1];
         let p1 = r * phi.cos();
         let s = 0.5 * (1.0 + v.z);
         let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
@@ -97,7 +119,7 @@ mod tests {
     fn d_at_the_normal_is_one_over_pi_alpha_x_alpha_y() {
         for (alpha_x, alpha_y) in [(0.3, 0.1), (0.02, 0.02), (1.0, 0.5)] {
             let peak = Ggx::d((alpha_x, alpha_y), DVec3::Z);
-            let expected = 1.0 / (std::f64::consts::PI * alpha_x * alpha_y);
+            let expected = 1.0 / (PI * alpha_x * alpha_y);
             assert!(
                 (peak - expected).abs() < 1e-12 * expected,
                 "{peak} against {expected}"
