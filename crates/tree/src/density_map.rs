@@ -840,11 +840,14 @@ impl DensityMap {
         let spans = (&columns, &rows);
         if let PrefixTable::Blocked(table) = &self.tables.sums {
             let side = (columns.last - columns.first).max(rows.last - rows.first) + 1;
-            // Tables of 17², 33² and 65² entries (2.3, 8.7 and 33.8 KB on the stack).
+            // Tables of 17², 25², 33², 49² and 65² entries (2.3 to 33.8 KB on the stack, each
+            // cleared once a leaf).
             let place = match side {
                 ..=16 => Self::place_in_box::<289>,
-                17..=32 => Self::place_in_box::<1089>,
-                33..=64 => Self::place_in_box::<4225>,
+                17..=24 => Self::place_in_box::<625>,
+                25..=32 => Self::place_in_box::<1089>,
+                33..=48 => Self::place_in_box::<2401>,
+                49..=64 => Self::place_in_box::<4225>,
                 _ => Self::place_in_large_box,
             };
             return place(self, table, spans, min, size, uniforms, positions);

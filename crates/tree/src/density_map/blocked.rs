@@ -227,13 +227,13 @@ impl BlockedPrefix<u32> {
             (0..0, 0..0)
         };
         let value = q(c0, r0);
+        let row_is =
+            |j: usize, columns: (usize, usize)| self.texels.row_is(self.level, j, columns, value);
         (r0..=r1).all(|j| {
             if inner.1.contains(&j) {
-                (c0..inner.0.start)
-                    .chain(inner.0.end..=c1)
-                    .all(|i| q(i, j) == value)
+                row_is(j, (c0, inner.0.start)) && row_is(j, (inner.0.end, c1 + 1))
             } else {
-                (c0..=c1).all(|i| q(i, j) == value)
+                row_is(j, (c0, c1 + 1))
             }
         })
     }
@@ -246,13 +246,9 @@ fn scan<T: Entry>(
     (i0, i1): (usize, usize),
     (j0, j1): (usize, usize),
 ) -> T {
-    let mut sum = T::default();
-    for j in j0..j1 {
-        for i in i0..i1 {
-            sum = sum + T::of_texel(texels, level, i, j);
-        }
-    }
-    sum
+    (j0..j1).fold(T::default(), |sum, j| {
+        sum + T::of_row(texels, level, j, (i0, i1))
+    })
 }
 
 /// The maxima of `level`'s q over blocks of [`BLOCK`] × [`BLOCK`] texels (those the map's

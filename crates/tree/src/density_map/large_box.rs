@@ -12,8 +12,8 @@
 //! is the largest k with before(k) ≤ target (or < total, for the last texel with mass) however
 //! it is found. Here it is found in two steps: the masses at the box's block boundaries, once
 //! for all its particles (the corners, and one pass along the partial rows), then the columns
-//! of one block, each column's sums read once. The row is found from the chosen column's
-//! running sums, its texels read once. Every mass is the same integer the tables give, turned
+//! of one block, each column's sums read once. The row is found by walking the chosen column
+//! from the box's first row, after its total. Every mass is the same integer the tables give, turned
 //! into the same floating-point value, so the positions are those of
 //! [`super::DensityMap::place_each`]'s searches, bit for bit (a unit test compares them).
 
@@ -22,7 +22,7 @@ use super::blocked::BlockedPrefix;
 use super::level_texels::BLOCK;
 
 /// The widest and tallest box placed here, in texels (larger boxes take the tables' own
-/// searches): its block boundaries and one column's running sums live on the stack.
+/// searches): its block boundaries live on the stack.
 pub(super) const MAX_SIDE: usize = 1024;
 
 /// The most block boundaries of a box's interior columns: every block's first column, the
@@ -218,15 +218,56 @@ impl<'a> LargeBox<'a> {
     }
 
     /// The row `invert` gives `u` within column `i` over the box's rows, and the fraction
-    /// within it: the column's texels read once into running sums.
+    /// within it: the column's total, then its rows from the first until before(k) passes the
+    /// target, each the same integer sum `invert`'s masses take (no table to clear).
     pub(super) fn row(&self, i: usize, u: f64) -> (usize, f64) {
-        let r0 = self.rows.first;
-        let mut running = [0u64; MAX_SIDE + 1];
-        for j in r0..=self.rows.last {
-            running[j - r0 + 1] = running[j - r0] + self.table.cell(i, j);
+        let (first, last) = (self.rows.first, self.rows.last);
+        let q = |j: usize| self.table.cell(i, j);
+        let first_mass = q(first) as f64 * self.rows.first_weight;
+        let last_mass = if last > first {
+            q(last) as f64 * self.rows.last_weight
+        } else {
+            0.0
+        };
+        // `invert`'s before(k), from the interior rows' sum over [first + 1, min(k, last)).
+        let before = |k: usize, interior: u64| {
+            if k == first {
+                return 0.0;
+            }
+            let interior = if last > first + 1 {
+                interior as f64
+            } else {
+                0.0
+            };
+            first_mass + interior + if k > last { last_mass } else { 0.0 }
+        };
+        let interior: u64 = (first + 1..last).map(q).sum();
+        let total = before(last + 1, interior);
+        let target = u * total;
+        // The largest k in [first, last] where `holds(before(k))`, with before(k) and
+        // before(k + 1): before(first) = 0 holds.
+        let last_row_where = |holds: &dyn Fn(f64) -> bool| {
+            let (mut k, mut below, mut sum) = (first, 0.0, 0u64);
+            while k < last {
+                if k > first {
+                    sum += q(k);
+                }
+                let next = before(k + 1, sum);
+                if !holds(next) {
+                    return (k, below, next);
+                }
+                (k, below) = (k + 1, next);
+            }
+            (last, below, total)
+        };
+        if !(target < total) {
+            if !(0.0 < total) {
+                return (first, 1.0);
+            }
+            return (last_row_where(&|before| before < total).0, 1.0);
         }
-        let mass = |a: usize, b: usize| (running[b - r0] - running[a - r0]) as f64;
-        super::invert(self.rows, &mass, u)
+        let (lo, below, above) = last_row_where(&|before| before <= target);
+        (lo, ((target - below) / (above - below)).clamp(0.0, 1.0))
     }
 }
 

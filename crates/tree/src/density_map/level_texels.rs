@@ -218,6 +218,41 @@ impl LevelTexels {
         }
     }
 
+    /// Σ of `level`'s q over texels [i0, i1) of row j (j from v = 0): a single map's row read
+    /// as a slice (its low words summed, its 33rd bits counted), a family's texel by texel.
+    #[inline]
+    pub(super) fn row_sum(&self, level: usize, j: usize, (i0, i1): (usize, usize)) -> u64 {
+        match &self.storage {
+            Storage::Single { low, high } if level == 0 => {
+                let (a, b) = (j * self.width + i0, j * self.width + i1);
+                let lows: u64 = low[a..b].iter().map(|&v| u64::from(v)).sum();
+                lows + (ones_in(high, a, b) << 32)
+            }
+            _ => (i0..i1).map(|i| self.fixed(level, i, j)).sum(),
+        }
+    }
+
+    /// Whether `level`'s q is `value` at every texel [i0, i1) of row j (as [`Self::row_sum`]
+    /// reads a row).
+    #[inline]
+    pub(super) fn row_is(
+        &self,
+        level: usize,
+        j: usize,
+        (i0, i1): (usize, usize),
+        value: u64,
+    ) -> bool {
+        match &self.storage {
+            Storage::Single { low, high } if level == 0 => {
+                let (a, b) = (j * self.width + i0, j * self.width + i1);
+                let top = value >> 32;
+                low[a..b].iter().all(|&v| v == value as u32)
+                    && ones_in(high, a, b) == if top == 1 { (b - a) as u64 } else { 0 }
+            }
+            _ => (i0..i1).all(|i| self.fixed(level, i, j) == value),
+        }
+    }
+
     /// The value changes g(i, j) = [q(i, j) ≠ q(i + 1, j)] + [q(i, j) ≠ q(i, j + 1)] of `level`
     /// at texel (i, j), a neighbour outside the map counting as no change (as a map's table of
     /// changes counts them).
@@ -227,6 +262,30 @@ impl LevelTexels {
         u32::from(i + 1 < self.width && self.fixed(level, i + 1, j) != q)
             + u32::from(j + 1 < self.height && self.fixed(level, i, j + 1) != q)
     }
+}
+
+/// How many bits [a, b) of the bit set `bits` are set (bit t at bit t mod 64 of word t / 64).
+fn ones_in(bits: &[u64], a: usize, b: usize) -> u64 {
+    if a >= b {
+        return 0;
+    }
+    let (first, last) = (a >> 6, (b - 1) >> 6);
+    let mask = |word: usize| {
+        let low = if word == first {
+            u64::MAX << (a & 63)
+        } else {
+            u64::MAX
+        };
+        let high = if word == last {
+            u64::MAX >> (63 - ((b - 1) & 63))
+        } else {
+            u64::MAX
+        };
+        low & high
+    };
+    (first..=last)
+        .map(|word| u64::from((bits[word] & mask(word)).count_ones()))
+        .sum()
 }
 
 #[cfg(test)]
@@ -261,6 +320,48 @@ mod tests {
                     expected,
                     "texel {k} level {level}"
                 );
+            }
+        }
+    }
+
+    /// A single map's rows read as slices ([`LevelTexels::row_sum`], [`LevelTexels::row_is`])
+    /// give what its texels give one by one, over spans that start and end anywhere in the
+    /// bit set's words, d = 1 (the 33rd bit) included, and rows of one value.
+    #[test]
+    fn single_rows_read_what_their_texels_hold() {
+        let mut rng = crate::tea::TeaRng::new([5, 6, 7, 8], 0, 8);
+        for (width, height) in [(1, 3), (63, 2), (64, 3), (130, 5)] {
+            let pattern: Vec<u64> = (0..width * height)
+                .map(|k| match rng.next_bits() % 4 {
+                    0 => 1 << 32,
+                    1 => 0,
+                    _ if k % 7 == 0 => rng.next_bits() >> 32,
+                    _ => 1 << 32,
+                })
+                .collect();
+            let single = LevelTexels::single(width, height, &|i, j| pattern[j * width + i]);
+            assert_eq!(
+                single.heap_bytes(),
+                LevelTexels::single_bytes_for(width, height)
+            );
+            for j in 0..height {
+                for i0 in 0..=width {
+                    for i1 in i0..=width {
+                        let texels = || (i0..i1).map(|i| single.fixed(0, i, j));
+                        assert_eq!(single.row_sum(0, j, (i0, i1)), texels().sum::<u64>());
+                        for value in [1 << 32, 0, single.fixed(0, i0.min(width - 1), j)] {
+                            assert_eq!(
+                                single.row_is(0, j, (i0, i1), value),
+                                texels().all(|q| q == value),
+                                "{width} x {height}: row {j} [{i0}, {i1}) = {value}"
+                            );
+                        }
+                    }
+                }
+                for i in 0..width {
+                    assert_eq!(single.fixed(0, i, j), pattern[j * width + i]);
+                    assert_eq!(single.fixed(1, i, j), 0);
+                }
             }
         }
     }

@@ -74,6 +74,14 @@ pub(super) trait Entry:
     /// The entry of texel (i, j) of a family's `level` (j from v = 0): a summed-area table of
     /// values (`u64`) holds its q, one of value changes (`u32`) its g.
     fn of_texel(texels: &LevelTexels, level: usize, i: usize, j: usize) -> Self;
+
+    /// Σ of the entries of texels [i0, i1) of row j.
+    #[inline]
+    fn of_row(texels: &LevelTexels, level: usize, j: usize, (i0, i1): (usize, usize)) -> Self {
+        (i0..i1).fold(Self::default(), |sum, i| {
+            sum + Self::of_texel(texels, level, i, j)
+        })
+    }
 }
 
 impl Entry for u64 {
@@ -82,6 +90,11 @@ impl Entry for u64 {
     #[inline]
     fn of_texel(texels: &LevelTexels, level: usize, i: usize, j: usize) -> Self {
         texels.fixed(level, i, j)
+    }
+
+    #[inline]
+    fn of_row(texels: &LevelTexels, level: usize, j: usize, columns: (usize, usize)) -> Self {
+        texels.row_sum(level, j, columns)
     }
 }
 
